@@ -1,0 +1,43 @@
+#pragma once
+// A 2D metric chart of the contact surface: texel coordinates in mm, what skin
+// images are resampled onto and the heatmap's UVs.
+#include <clearfit/geometry/contact.hpp>
+#include <clearfit/geometry/mesh.hpp>
+
+namespace clearfit {
+
+enum class ChartMethod {
+  automatic,   ///< planar projection when the surface is flat (within tolerance), else lscm
+  planar,      ///< exact orthogonal projection onto the best-fit plane (flat surfaces only)
+  lscm,        ///< CGAL least-squares conformal map, scaled to preserve area
+  arap         ///< CGAL as-rigid-as-possible
+};
+std::string_view to_string(ChartMethod method);
+
+struct ChartOptions {
+  ChartMethod method = ChartMethod::automatic;
+  double planar_tolerance_mm = 1e-6;  ///< max distance from the plane to call it flat
+  void validate() const;
+};
+
+struct Chart {
+  ChartMethod method = ChartMethod::automatic;  ///< the one used
+  /// Chart coordinates (mm) per mesh vertex; NaN for vertices not on the contact surface.
+  std::vector<Vec2> uv;
+  std::vector<int> faces;            ///< contact faces covered
+  Vec2 uv_min = Vec2::Zero(), uv_max = Vec2::Zero();
+  /// Distortion against the 3D surface, per face then summarised:
+  /// area ratio (2D/3D) and angle error (deg).
+  double area_ratio_min = 1, area_ratio_max = 1;
+  double angle_error_mean_deg = 0, angle_error_max_deg = 0;
+  /// For planar charts: part frame = origin + u * axis_u + v * axis_v.
+  Vec3 origin = Vec3::Zero(), axis_u = Vec3::UnitX(), axis_v = Vec3::UnitY();
+  std::vector<std::string> notes;
+};
+
+/// Throws InputError when the surface cannot be charted (not a topological
+/// disk per component for lscm/arap; not flat for planar).
+/// Several components are charted separately and laid side by side.
+Chart compute_chart(const Mesh& mesh, const ContactSurface& contact, const ChartOptions& options = {});
+
+}  // namespace clearfit

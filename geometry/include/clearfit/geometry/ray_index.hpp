@@ -1,0 +1,60 @@
+#pragma once
+// First-hit ray queries against a mesh. One small interface; Embree (default)
+// and CGAL's AABB tree behind it, plus a brute-force loop for tests.
+#include <clearfit/geometry/mesh.hpp>
+#include <clearfit/geometry/normals.hpp>
+#include <limits>
+#include <memory>
+#include <span>
+
+namespace clearfit {
+
+struct Ray {
+  Vec3 origin;
+  Vec3 direction;   ///< need not be unit length; t is in units of |direction|
+  double t_min = 0.0;
+  double t_max = std::numeric_limits<double>::infinity();
+};
+
+/// A hit, recomputed in double precision on the face the index found.
+struct RayHit {
+  int face = -1;                   ///< mesh face index; -1 = miss
+  double t = 0;                    ///< origin + t * direction = point
+  Vec3 point = Vec3::Zero();       ///< part frame, mm
+  std::array<double, 3> bary{};    ///< weights of corners 0,1,2 of the face (sum 1)
+  Vec3 geometric_normal = Vec3::Zero();   ///< unit, right-hand (outward for an oriented mesh)
+  Vec3 shading_normal = Vec3::Zero();     ///< unit, interpolated corner normal
+  bool front_facing = false;       ///< direction · geometric_normal < 0
+  explicit operator bool() const { return face >= 0; }
+};
+
+enum class RayBackend { embree, cgal_aabb, brute_force };
+std::string_view to_string(RayBackend backend);
+
+class RayIndex {
+ public:
+  virtual ~RayIndex() = default;
+  /// First hit along each ray with t in [t_min, t_max]; hits[i].face = -1 on a miss.
+  /// Thread-safe; parallel over the batch (TBB).
+  virtual void intersect(std::span<const Ray> rays, std::span<RayHit> hits) const = 0;
+  RayHit intersect(const Ray& ray) const;
+  virtual RayBackend backend() const = 0;
+  const Mesh& mesh() const { return *mesh_; }
+  const CornerNormals& normals() const { return normals_; }
+
+ protected:
+  RayIndex(const Mesh& mesh, CornerNormals normals) : mesh_(&mesh), normals_(std::move(normals)) {}
+  /// Exact double-precision hit of `ray` with `face` (no range checks on the
+  /// barycentrics beyond clamping tiny negatives), filling every RayHit field.
+  RayHit refine_hit(const Ray& ray, int face) const;
+
+ private:
+  const Mesh* mesh_;
+  CornerNormals normals_;
+};
+
+/// The mesh must outlive the index. `normals` default: compute_corner_normals(mesh).
+std::unique_ptr<RayIndex> make_ray_index(const Mesh& mesh, RayBackend backend = RayBackend::embree,
+                                         const CornerNormals* normals = nullptr);
+
+}  // namespace clearfit

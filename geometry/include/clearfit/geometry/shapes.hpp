@@ -1,0 +1,37 @@
+#pragma once
+// Analytic test parts: closed, outward-oriented triangle meshes with named
+// groups ("outer", "contact", "side"), for tests, benchmarks and samples.
+#include <clearfit/geometry/mesh.hpp>
+
+namespace clearfit::shapes {
+
+/// Axis-aligned box centred at the origin; `n` subdivisions per edge.
+/// Groups: "bottom" (z = -size.z/2) ... one per side: "xmin","xmax","ymin","ymax","bottom","top".
+Mesh box(const Vec3& size, int n = 1);
+
+/// Sphere of `radius` centred at the origin: subdivided icosahedron with vertices
+/// on the sphere (20·4^subdivisions faces). One group "sphere".
+Mesh icosphere(double radius, int subdivisions);
+
+/// Flat plate: x in [-sx/2, sx/2], y in [-sy/2, sy/2], z in [0, thickness].
+/// Groups: "contact" (z = 0, faces -z, the skin side), "outer" (z = thickness,
+/// faces +z, the camera side), "side". Convention for all shapes: the camera
+/// is on +z looking down, the skin below the contact surface. `n` quads per edge on the big faces.
+Mesh slab(double sx, double sy, double thickness, int n = 1);
+
+/// Segment of a cylindrical shell about the y axis (a wristband): inner radius
+/// r_in, outer radius r_out, spanning `span_deg` around the +z axis
+/// (symmetric: the middle of the band is at (0, 0, r)), width w along y
+/// (y in [-w/2, w/2]). A camera on +z looking down sees the wrist through it. Groups: "contact" (inner surface, the skin
+/// side), "outer" (outer surface), "side" (ends and edges).
+/// span_deg = 360 gives a closed tube (no end caps).
+Mesh cylindrical_shell(double r_in, double r_out, double span_deg, double width,
+                       int n_around, int n_width);
+
+/// Spherical cap shell (a dome) about the +z axis, centred at the origin: the inner sphere r_in is
+/// the skin side ("contact"), the outer sphere r_out faces the camera
+/// ("outer"), the rim is "side". Cap half-angle `cap_deg` (< 90), `n_rings`
+/// rings and `n_around` segments.
+Mesh spherical_shell(double r_in, double r_out, double cap_deg, int n_rings, int n_around);
+
+}  // namespace clearfit::shapes

@@ -1,0 +1,54 @@
+#include <clearfit/atomic_file.hpp>
+#include <clearfit/error.hpp>
+
+#include <atomic>
+#include <fstream>
+#include <unistd.h>
+
+namespace clearfit {
+namespace {
+std::filesystem::path temporary_beside(const std::filesystem::path& path) {
+  static std::atomic<unsigned> counter{0};
+  std::filesystem::path tmp = path;
+  tmp.replace_filename("." + path.stem().string() + ".tmp" + std::to_string(::getpid()) + "_" +
+                       std::to_string(counter++) + path.extension().string());
+  return tmp;
+}
+}  // namespace
+
+void write_path_atomically(const std::filesystem::path& path,
+                           const std::function<void(const std::filesystem::path&)>& write) {
+  if (path.empty()) throw InputError("", "output path", "is empty");
+  if (std::filesystem::is_directory(path))
+    throw InputError(path.string(), "", "is a directory, expected a file name for the output");
+  const auto parent = path.parent_path();
+  if (!parent.empty() && !std::filesystem::is_directory(parent))
+    throw InputError(path.string(), "", "the folder " + parent.string() + " does not exist", "create it first");
+  const auto tmp = temporary_beside(path);
+  try {
+    write(tmp);
+    std::error_code ec;
+    std::filesystem::rename(tmp, path, ec);
+    if (ec) throw InputError(path.string(), "", "cannot write the output: " + ec.message());
+  } catch (...) {
+    std::error_code ignored;
+    std::filesystem::remove(tmp, ignored);
+    throw;
+  }
+}
+
+void write_file_atomically(const std::filesystem::path& path, const std::function<void(std::ostream&)>& write) {
+  write_path_atomically(path, [&](const std::filesystem::path& tmp) {
+    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
+    if (!out) throw InputError(path.string(), "", "cannot create the output file", "check the folder's permissions");
+    write(out);
+    out.flush();
+    if (!out) throw InputError(path.string(), "", "writing failed (disk full?)");
+  });
+}
+
+void write_file_atomically(const std::filesystem::path& path, std::string_view contents) {
+  write_file_atomically(path, [&](std::ostream& out) { out.write(contents.data(), static_cast<std::streamsize>(contents.size())); });
+}
+
+}  // namespace clearfit

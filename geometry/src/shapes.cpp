@@ -1,0 +1,211 @@
+#include <clearfit/geometry/shapes.hpp>
+
+#include <cmath>
+#include <functional>
+#include <map>
+#include <numbers>
+#include <stdexcept>
+
+namespace clearfit::shapes {
+namespace {
+
+// Builds a closed mesh from parametric quad patches. Vertices are welded by
+// exact coordinates (every patch computes shared points with the same
+// expressions), triangles with a repeated vertex (poles) are dropped, and each
+// triangle is oriented so its normal agrees with the patch's outward direction.
+class Builder {
+ public:
+  int group(const std::string& name) {
+    for (size_t i = 0; i < mesh_.groups.size(); ++i)
+      if (mesh_.groups[i] == name) return static_cast<int>(i);
+    mesh_.groups.push_back(name);
+    return static_cast<int>(mesh_.groups.size()) - 1;
+  }
+  int vertex(const Vec3& p) {
+    auto [it, inserted] = index_.try_emplace({p.x(), p.y(), p.z()}, mesh_.num_vertices());
+    if (inserted) mesh_.vertices.push_back(p);
+    return it->second;
+  }
+  void triangle(int a, int b, int c, const Vec3& outward, int g) {
+    if (a == b || b == c || a == c) return;
+    const Vec3 n = (mesh_.vertices[b] - mesh_.vertices[a]).cross(mesh_.vertices[c] - mesh_.vertices[a]);
+    if (n.dot(outward) < 0) std::swap(b, c);
+    mesh_.faces.push_back({a, b, c});
+    mesh_.face_group.push_back(g);
+  }
+  /// Patch of nu × nv quads; pos(i, j) for i in [0, nu], j in [0, nv].
+  void patch(int nu, int nv, const std::function<Vec3(int, int)>& pos,
+             const std::function<Vec3(const Vec3&)>& outward, const std::string& name) {
+    const int g = group(name);
+    for (int i = 0; i < nu; ++i)
+      for (int j = 0; j < nv; ++j) {
+        const int a = vertex(pos(i, j)), b = vertex(pos(i + 1, j));
+        const int c = vertex(pos(i + 1, j + 1)), d = vertex(pos(i, j + 1));
+        const Vec3 m1 = (mesh_.vertices[a] + mesh_.vertices[b] + mesh_.vertices[c]) / 3.0;
+        const Vec3 m2 = (mesh_.vertices[a] + mesh_.vertices[c] + mesh_.vertices[d]) / 3.0;
+        triangle(a, b, c, outward(m1), g);
+        triangle(a, c, d, outward(m2), g);
+      }
+  }
+  Mesh finish(std::string source) {
+    mesh_.file_face.resize(mesh_.faces.size());
+    for (size_t i = 0; i < mesh_.faces.size(); ++i) mesh_.file_face[i] = static_cast<int>(i);
+    mesh_.source = std::move(source);
+    return std::move(mesh_);
+  }
+
+ private:
+  Mesh mesh_;
+  std::map<std::array<double, 3>, int> index_;
+};
+
+// a + (b - a) k / n, exact at both ends so shared edges weld.
+double lerp(double a, double b, int k, int n) {
+  if (k <= 0) return a;
+  if (k >= n) return b;
+  return a + (b - a) * static_cast<double>(k) / n;
+}
+
+void require(bool ok, const char* what) {
+  if (!ok) throw std::invalid_argument(std::string("clearfit::shapes: ") + what);
+}
+
+}  // namespace
+
+Mesh box(const Vec3& size, int n) {
+  require(size.minCoeff() > 0 && n >= 1, "box needs positive size and n >= 1");
+  Builder b;
+  const Vec3 h = size / 2;
+  auto c = [&](int axis, int k) { return lerp(-h[axis], h[axis], k, n); };
+  const char* names[3][2] = {{"xmin", "xmax"}, {"ymin", "ymax"}, {"bottom", "top"}};
+  for (int axis = 0; axis < 3; ++axis)
+    for (int side = 0; side < 2; ++side) {
+      const int u = (axis + 1) % 3, v = (axis + 2) % 3;
+      Vec3 out = Vec3::Zero();
+      out[axis] = side ? 1 : -1;
+      b.patch(n, n, [&](int i, int j) {
+            Vec3 p;
+            p[axis] = side ? h[axis] : -h[axis];
+            p[u] = c(u, i);
+            p[v] = c(v, j);
+            return p;
+          },
+          [&](const Vec3&) { return out; }, names[axis][side]);
+    }
+  return b.finish("shapes::box");
+}
+
+Mesh icosphere(double radius, int subdivisions) {
+  require(radius > 0 && subdivisions >= 0 && subdivisions <= 9, "icosphere needs radius > 0, 0 <= subdivisions <= 9");
+  const double t = (1.0 + std::sqrt(5.0)) / 2.0;
+  std::vector<Vec3> v = {{-1, t, 0}, {1, t, 0}, {-1, -t, 0}, {1, -t, 0}, {0, -1, t}, {0, 1, t},
+                         {0, -1, -t}, {0, 1, -t}, {t, 0, -1}, {t, 0, 1}, {-t, 0, -1}, {-t, 0, 1}};
+  for (auto& p : v) p.normalize();
+  std::vector<std::array<int, 3>> f = {{0, 11, 5}, {0, 5, 1}, {0, 1, 7}, {0, 7, 10}, {0, 10, 11},
+                                       {1, 5, 9}, {5, 11, 4}, {11, 10, 2}, {10, 7, 6}, {7, 1, 8},
+                                       {3, 9, 4}, {3, 4, 2}, {3, 2, 6}, {3, 6, 8}, {3, 8, 9},
+                                       {4, 9, 5}, {2, 4, 11}, {6, 2, 10}, {8, 6, 7}, {9, 8, 1}};
+  for (int s = 0; s < subdivisions; ++s) {
+    std::map<std::pair<int, int>, int> mid;
+    auto midpoint = [&](int a, int b) {
+      auto key = std::minmax(a, b);
+      auto [it, inserted] = mid.try_emplace(key, static_cast<int>(v.size()));
+      if (inserted) v.push_back((v[a] + v[b]).normalized());
+      return it->second;
+    };
+    std::vector<std::array<int, 3>> next;
+    next.reserve(f.size() * 4);
+    for (auto [a, b, c] : f) {
+      int ab = midpoint(a, b), bc = midpoint(b, c), ca = midpoint(c, a);
+      next.push_back({a, ab, ca});
+      next.push_back({b, bc, ab});
+      next.push_back({c, ca, bc});
+      next.push_back({ab, bc, ca});
+    }
+    f = std::move(next);
+  }
+  Mesh m;
+  m.vertices.reserve(v.size());
+  for (const auto& p : v) m.vertices.push_back(radius * p);
+  m.groups = {"sphere"};
+  for (auto tri : f) {
+    const Vec3 n = (m.vertices[tri[1]] - m.vertices[tri[0]]).cross(m.vertices[tri[2]] - m.vertices[tri[0]]);
+    if (n.dot(m.vertices[tri[0]]) < 0) std::swap(tri[1], tri[2]);
+    m.faces.push_back(tri);
+  }
+  m.face_group.assign(m.faces.size(), 0);
+  m.file_face.resize(m.faces.size());
+  for (size_t i = 0; i < m.faces.size(); ++i) m.file_face[i] = static_cast<int>(i);
+  m.source = "shapes::icosphere";
+  return m;
+}
+
+Mesh slab(double sx, double sy, double thickness, int n) {
+  require(sx > 0 && sy > 0 && thickness > 0 && n >= 1, "slab needs positive sizes and n >= 1");
+  Builder b;
+  auto x = [&](int i) { return lerp(-sx / 2, sx / 2, i, n); };
+  auto y = [&](int j) { return lerp(-sy / 2, sy / 2, j, n); };
+  auto z = [&](int k) { return lerp(0.0, thickness, k, 1); };
+  b.patch(n, n, [&](int i, int j) { return Vec3(x(i), y(j), z(0)); }, [](const Vec3&) { return Vec3(0, 0, -1); }, "contact");
+  b.patch(n, n, [&](int i, int j) { return Vec3(x(i), y(j), z(1)); }, [](const Vec3&) { return Vec3(0, 0, 1); }, "outer");
+  b.patch(n, 1, [&](int i, int k) { return Vec3(x(i), y(0), z(k)); }, [](const Vec3&) { return Vec3(0, -1, 0); }, "side");
+  b.patch(n, 1, [&](int i, int k) { return Vec3(x(i), y(n), z(k)); }, [](const Vec3&) { return Vec3(0, 1, 0); }, "side");
+  b.patch(n, 1, [&](int j, int k) { return Vec3(x(0), y(j), z(k)); }, [](const Vec3&) { return Vec3(-1, 0, 0); }, "side");
+  b.patch(n, 1, [&](int j, int k) { return Vec3(x(n), y(j), z(k)); }, [](const Vec3&) { return Vec3(1, 0, 0); }, "side");
+  return b.finish("shapes::slab");
+}
+
+Mesh cylindrical_shell(double r_in, double r_out, double span_deg, double width, int n_around, int n_width) {
+  require(r_in > 0 && r_out > r_in && width > 0 && span_deg > 0 && span_deg <= 360 && n_around >= 3 && n_width >= 1,
+          "cylindrical_shell needs 0 < r_in < r_out, width > 0, 0 < span_deg <= 360, n_around >= 3, n_width >= 1");
+  const bool closed = span_deg >= 360;
+  const double half = span_deg * std::numbers::pi / 360.0;
+  auto theta = [&](int i) { return closed ? -half + 2 * half * static_cast<double>(i % n_around) / n_around
+                                          : lerp(-half, half, i, n_around); };
+  auto y = [&](int k) { return lerp(-width / 2, width / 2, k, n_width); };
+  auto point = [&](double r, int i, double yy) {
+    const double t = theta(i);
+    return Vec3(r * std::sin(t), yy, r * std::cos(t));
+  };
+  auto radial = [](const Vec3& p) { return Vec3(p.x(), 0, p.z()); };
+  Builder b;
+  b.patch(n_around, n_width, [&](int i, int k) { return point(r_in, i, y(k)); }, [&](const Vec3& p) { return Vec3(-radial(p)); }, "contact");
+  b.patch(n_around, n_width, [&](int i, int k) { return point(r_out, i, y(k)); }, radial, "outer");
+  for (int side = 0; side < 2; ++side) {
+    const int k = side ? n_width : 0;
+    b.patch(n_around, 1, [&](int i, int j) { return point(j ? r_out : r_in, i, y(k)); },
+            [&](const Vec3&) { return Vec3(0, side ? 1 : -1, 0); }, "side");
+  }
+  if (!closed)
+    for (int end = 0; end < 2; ++end) {
+      const int i = end ? n_around : 0;
+      const double t = theta(i);
+      const Vec3 out = end ? Vec3(std::cos(t), 0, -std::sin(t)) : Vec3(-std::cos(t), 0, std::sin(t));
+      b.patch(1, n_width, [&](int j, int k) { return point(j ? r_out : r_in, i, y(k)); },
+              [&](const Vec3&) { return out; }, "side");
+    }
+  return b.finish("shapes::cylindrical_shell");
+}
+
+Mesh spherical_shell(double r_in, double r_out, double cap_deg, int n_rings, int n_around) {
+  require(r_in > 0 && r_out > r_in && cap_deg > 0 && cap_deg < 90 && n_rings >= 1 && n_around >= 3,
+          "spherical_shell needs 0 < r_in < r_out, 0 < cap_deg < 90, n_rings >= 1, n_around >= 3");
+  const double cap = cap_deg * std::numbers::pi / 180.0;
+  auto phi = [&](int j) { return lerp(0.0, cap, j, n_rings); };
+  auto psi = [&](int i) { return 2 * std::numbers::pi * static_cast<double>(i % n_around) / n_around; };
+  auto point = [&](double r, int i, int j) {
+    const double f = phi(j), s = psi(i);
+    return Vec3(r * std::sin(f) * std::cos(s), r * std::sin(f) * std::sin(s), r * std::cos(f));
+  };
+  Builder b;
+  b.patch(n_around, n_rings, [&](int i, int j) { return point(r_in, i, j); }, [](const Vec3& p) { return Vec3(-p); }, "contact");
+  b.patch(n_around, n_rings, [&](int i, int j) { return point(r_out, i, j); }, [](const Vec3& p) { return p; }, "outer");
+  b.patch(n_around, 1, [&](int i, int k) { return point(k ? r_out : r_in, i, n_rings); },
+          [&](const Vec3& p) {
+            const double s = std::atan2(p.y(), p.x());
+            return Vec3(std::cos(cap) * std::cos(s), std::cos(cap) * std::sin(s), -std::sin(cap));
+          }, "side");
+  return b.finish("shapes::spherical_shell");
+}
+
+}  // namespace clearfit::shapes

@@ -1,0 +1,70 @@
+#!/usr/bin/env bash
+# clearfit's one-command setup for a fresh Debian 12 machine.
+#   scripts/bootstrap.sh sample   install dependencies, build (Release), run clearfit on the bundled sample
+#   scripts/bootstrap.sh test     install dependencies, build (Release), run the whole test suite (ctest)
+#   scripts/bootstrap.sh asan     same as test, in a separate AddressSanitizer + UBSan build (build-asan/)
+#   scripts/bootstrap.sh deps     only install the dependencies
+# Idempotent and non-interactive. Needs root or sudo for apt-get.
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+PACKAGES=(
+  cmake ninja-build g++ pkg-config git
+  libeigen3-dev libcgal-dev libopenmesh-dev libtinyobjloader-dev lib3mf-dev libzip-dev libtinygltf-dev
+  libembree-dev libtbb-dev libopencv-dev libapriltag-dev libmrcal-dev mrcal python3-mrcal python3-numpy
+  nlohmann-json3-dev libyaml-cpp-dev libcli11-dev libgtest-dev libgmock-dev libbenchmark-dev
+)
+
+install_deps() {
+  local missing=()
+  for p in "${PACKAGES[@]}"; do
+    dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
+  done
+  if [ ${#missing[@]} -eq 0 ]; then
+    echo "== dependencies: all ${#PACKAGES[@]} packages present"
+    return
+  fi
+  echo "== installing ${#missing[@]} missing packages: ${missing[*]}"
+  local sudo=""
+  [ "$(id -u)" -eq 0 ] || sudo="sudo"
+  export DEBIAN_FRONTEND=noninteractive
+  $sudo apt-get update -qq
+  $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
+}
+
+build() {  # build DIR [extra cmake args...]
+  local dir=$1; shift
+  echo "== configuring and building in $dir"
+  cmake -S . -B "$dir" -G Ninja -DCMAKE_BUILD_TYPE=Release "$@" > "$dir.configure.log" 2>&1 ||
+    { cat "$dir.configure.log"; exit 1; }
+  cmake --build "$dir" -j "$(nproc)"
+}
+
+run_tests() {  # run_tests DIR
+  echo "== running the test suite"
+  ctest --test-dir "$1" --output-on-failure -j "$(nproc)" --timeout 600
+}
+
+case "${1:-}" in
+  deps) install_deps ;;
+  sample)
+    install_deps
+    build build
+    echo "== clearfit mesh-info on the bundled wristband sample"
+    ./build/cli/clearfit mesh-info samples/wristband/wristband.obj --contact-group contact
+    ;;
+  test)
+    install_deps
+    build build
+    run_tests build
+    ;;
+  asan)
+    install_deps
+    build build-asan -DCLEARFIT_SANITIZE=ON -DCLEARFIT_BUILD_BENCHMARKS=OFF
+    ASAN_OPTIONS=detect_leaks=1 run_tests build-asan
+    ;;
+  *)
+    sed -n '2,8p' "$0"
+    exit 2
+    ;;
+esac
