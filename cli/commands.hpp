@@ -9,5 +9,6 @@ namespace clearfit::cli {
 using Run = std::function<int()>;
 
 Run add_mesh_info(CLI::App& app);
+Run add_map(CLI::App& app);
 
 }  // namespace clearfit::cli

@@ -20,6 +20,7 @@ int main(int argc, char** argv) {
       if (std::find(before.begin(), before.end(), sub) == before.end()) runs[sub] = std::move(run);
   };
   add(clearfit::cli::add_mesh_info);
+  add(clearfit::cli::add_map);
 
   try {
     app.parse(argc, argv);

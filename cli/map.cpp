@@ -1,0 +1,106 @@
+// clearfit map: the refraction map of a part seen by a camera (pixel -> skin point).
+#include "commands.hpp"
+#include "options.hpp"
+
+#include <clearfit/atomic_file.hpp>
+#include <clearfit/camera/camera_model.hpp>
+#include <clearfit/camera/pose.hpp>
+#include <clearfit/error.hpp>
+#include <clearfit/refraction/map.hpp>
+#include <cmath>
+#include <iostream>
+#include <nlohmann/json.hpp>
+
+namespace clearfit::cli {
+
+namespace {
+void check_index(const char* option, double value) {
+  if (!(std::isfinite(value) && value >= 1.0))
+    throw InputError("", option, "must be a finite index of refraction >= 1, got " + std::to_string(value),
+                     "air 1.0, water 1.333, acrylic 1.49, clear resins 1.49-1.55");
+}
+
+nlohmann::json stats_json(const RefractionMap& map, const std::string& mesh, const std::string& camera,
+                          const MapOptions& opt) {
+  const MapStats& s = map.stats;
+  nlohmann::json by_status;
+  for (int k = 0; k < kPixelStatusCount; ++k) by_status[to_string(static_cast<PixelStatus>(k))] = s.by_status[k];
+  return {{"schema", "clearfit.map-stats/1"},
+          {"mesh", mesh},
+          {"camera", camera},
+          {"image", {{"width", map.width}, {"height", map.height}}},
+          {"indices", {{"medium", opt.indices.n_medium}, {"part", opt.indices.n_part}, {"skin", opt.indices.n_skin}}},
+          {"normals", opt.normals == MapOptions::Normals::smooth ? "smooth" : "flat"},
+          {"mode", "exact"},
+          {"fast_path", s.fast_path},
+          {"pixels", s.pixels},
+          {"traced", s.traced},
+          {"coverage", s.coverage},
+          {"by_status", by_status},
+          {"estimated_max_error_um", s.max_error_um},
+          {"timings_ms", {{"unproject", s.unproject_ms}, {"cull", s.cull_ms}, {"trace", s.trace_ms}, {"total", s.total_ms}}}};
+}
+}  // namespace
+
+Run add_map(CLI::App& app) {
+  struct Opts {
+    std::string mesh, camera, pose, out, stats, normals = "smooth", mode = "exact";
+    MeshOptions mesh_opt;
+    ContactOptions contact;
+    double ior = 1.49, medium_ior = 1.0, skin_ior = 1.4;
+  };
+  auto o = std::make_shared<Opts>();
+  CLI::App* sub = app.add_subcommand("map", "Refraction map: for every camera pixel, the skin point it sees through the part");
+  sub->add_option("--mesh", o->mesh, "Part mesh (.stl .obj .ply .off .3mf .gltf .glb)")->required();
+  sub->add_option("--camera", o->camera, "Camera model (mrcal .cameramodel)")->required();
+  sub->add_option("--pose", o->pose, "Pose file (clearfit.pose/1 JSON) with cam_from_part; default: the cameramodel's extrinsics");
+  sub->add_option("--ior", o->ior, "Index of refraction of the part")->capture_default_str();
+  sub->add_option("--medium-ior", o->medium_ior, "Index of the camera-side medium (air 1.0, water 1.333, oil ~1.5)")->capture_default_str();
+  sub->add_option("--skin-ior", o->skin_ior, "Index beyond the contact surface (skin)")->capture_default_str();
+  add_mesh_options(*sub, o->mesh_opt);
+  add_contact_options(*sub, o->contact);
+  sub->add_option("--normals", o->normals, "Shading normals at the surfaces")->check(CLI::IsMember({"smooth", "flat"}))->capture_default_str();
+  sub->add_option("--mode", o->mode, "Tracing mode (exact: every pixel traced)")->check(CLI::IsMember({"exact"}))->capture_default_str();
+  sub->add_option("--out", o->out, "Output MAP.npy: float32 H x W x 3 skin points (part frame, mm), NaN where invalid")->required();
+  sub->add_option("--stats", o->stats, "Output STATS.json: coverage, invalid pixels by reason, fast path, timings");
+
+  return [o]() {
+    check_index("--ior", o->ior);
+    check_index("--medium-ior", o->medium_ior);
+    check_index("--skin-ior", o->skin_ior);
+    Mesh mesh = load_part(o->mesh, o->mesh_opt);
+    for (const std::string& change : repair_mesh(mesh)) std::cerr << "clearfit: warning: " << o->mesh << ": " << change << "\n";
+    auto selector = make_contact_selector(o->contact);
+    if (!selector)
+      throw InputError(o->mesh, "contact surface", "not given",
+                       "name it with --contact-group, --contact-faces or --contact-normal/--contact-angle");
+    const ContactSurface contact = select_contact(mesh, *selector);
+    const CameraModel camera = read_cameramodel(o->camera);
+    const Rigid3 cam_from_part = o->pose.empty() ? camera.cam_from_part : read_pose_json(o->pose);
+
+    MapOptions opt;
+    opt.indices.n_part = o->ior;
+    opt.indices.n_medium = o->medium_ior;
+    opt.indices.n_skin = o->skin_ior;
+    opt.normals = o->normals == "flat" ? MapOptions::Normals::flat : MapOptions::Normals::smooth;
+    NormalOptions nopt;
+    const CornerNormals normals = compute_corner_normals(mesh, nopt);
+    const auto index = make_ray_index(mesh, RayBackend::embree, &normals);
+    const RefractionMap map = compute_refraction_map({&mesh, &contact, index.get(), nullptr}, camera, cam_from_part, opt);
+
+    const nlohmann::json stats = stats_json(map, o->mesh, o->camera, opt);
+    // Both outputs are rendered before either is written, so a failure leaves neither.
+    write_skin_points_npy(map, o->out);
+    if (!o->stats.empty()) write_file_atomically(o->stats, stats.dump(2) + "\n");
+    std::cout << "map " << map.width << " x " << map.height << ": " << map.stats.by_status[0] << " valid pixels ("
+              << static_cast<int>(map.stats.coverage * 1000) / 10.0 << " %), traced " << map.stats.traced
+              << ", fast path " << map.stats.fast_path << ", " << static_cast<int>(map.stats.total_ms) << " ms\n";
+    for (int k = 1; k < kPixelStatusCount; ++k)
+      if (map.stats.by_status[k] > 0)
+        std::cout << "  " << to_string(static_cast<PixelStatus>(k)) << ": " << map.stats.by_status[k] << "\n";
+    std::cout << "wrote " << o->out << (o->stats.empty() ? "" : " and " + o->stats) << "\n";
+    return 0;
+  };
+}
+
+}  // namespace clearfit::cli

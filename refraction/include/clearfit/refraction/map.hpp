@@ -1,0 +1,94 @@
+#pragma once
+// The refraction map: for every camera pixel, the skin point it sees through
+// the printed part (and why not, where it sees none).
+//
+// Per pixel (exact mode): unproject through the camera's mrcal lens model →
+// ray in the part frame (part_from_cam) → first hit on the part → vector Snell
+// refraction from the camera-side medium into the part (smooth or flat normal)
+// → the next face the refracted ray meets. The pixel is valid when the ray
+// entered through a non-contact face and the next face is a contact face; the
+// skin point is that intersection. Every invalid pixel carries a reason.
+#include <clearfit/camera/camera_model.hpp>
+#include <clearfit/geometry/chart.hpp>
+#include <clearfit/geometry/contact.hpp>
+#include <clearfit/geometry/ray_index.hpp>
+#include <clearfit/refraction/optics.hpp>
+
+#include <cstdint>
+#include <string>
+#include <vector>
+
+namespace clearfit {
+
+/// Why a pixel has (or lacks) a skin point. Values are stable: they are
+/// written to files.
+enum class PixelStatus : std::uint8_t {
+  valid = 0,
+  outside = 1,          ///< culled: the ray cannot reach the part (outside its image bound)
+  miss = 2,             ///< the ray misses the part
+  no_ray = 3,           ///< the lens model cannot unproject this pixel
+  contact_first = 4,    ///< the first face hit is a contact face (skin seen from the camera side, not through the part)
+  back_face = 5,        ///< the first hit is a face seen from inside (camera inside the part, or a flipped mesh)
+  entry_tir = 6,        ///< total internal reflection at entry (camera-side medium denser than the part)
+  exits_elsewhere = 7,  ///< the refracted ray meets a non-contact face (or nothing) before the skin
+  contact_tir = 8,      ///< reaches the contact face beyond the part→skin critical angle: sees a reflection
+};
+constexpr int kPixelStatusCount = 9;
+const char* to_string(PixelStatus status);
+
+struct MapOptions {
+  optics::Indices indices;               ///< n_medium (camera side), n_part, n_skin
+  enum class Normals { smooth, flat } normals = Normals::smooth;
+  bool fast_paths = true;                ///< use the straight-ray path when n_medium == n_part
+  bool cull = true;                      ///< trace only pixels inside the part's projected bound
+  /// Throws std::invalid_argument naming the field, its value and the rule.
+  void validate() const;
+};
+
+/// A part ready to be traced: mesh, contact surface, ray index (with the corner
+/// normals used for smooth shading) and optionally the contact chart.
+struct TraceScene {
+  const Mesh* mesh = nullptr;
+  const ContactSurface* contact = nullptr;
+  const RayIndex* index = nullptr;
+  const Chart* chart = nullptr;  ///< optional: fills chart_uv
+};
+
+struct MapStats {
+  long long pixels = 0, traced = 0;
+  long long by_status[kPixelStatusCount] = {};
+  double coverage = 0;                   ///< valid / pixels
+  std::string fast_path = "none";        ///< "none" | "index-matched"
+  double unproject_ms = 0, cull_ms = 0, trace_ms = 0, total_ms = 0;
+  double max_error_um = 0;               ///< estimated error of the approximation (0: exact trace)
+};
+
+/// Dense per-pixel results, row-major (pixel (x, y) at y * width + x; pixel
+/// (0,0) is the centre of the top-left pixel, as in mrcal).
+struct RefractionMap {
+  int width = 0, height = 0;
+  std::vector<PixelStatus> status;
+  std::vector<Vec3> skin_point;              ///< part frame, mm (double); NaN unless valid
+  std::vector<std::int32_t> face;            ///< contact face index (mesh), -1 unless valid
+  std::vector<Eigen::Vector2f> bary;         ///< weights of corners 1 and 2 (corner 0 = 1 − both)
+  std::vector<Eigen::Vector2f> chart_uv;     ///< chart mm; NaN unless valid and a chart was given
+  std::vector<float> incidence_deg;          ///< angle of incidence at entry
+  std::vector<float> contact_deg;            ///< angle of the refracted ray to the contact face normal
+  std::vector<float> transmittance;          ///< Fresnel T entry × T contact (unpolarised)
+  MapStats stats;
+
+  std::size_t index(int x, int y) const { return static_cast<std::size_t>(y) * width + x; }
+};
+
+/// Traces every pixel of `camera` (its imager size), with `cam_from_part`
+/// placing the part. Throws std::invalid_argument on bad options, InputError
+/// when the scene cannot be traced (no contact faces, the whole part behind
+/// the camera). Parallel (TBB).
+RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel& camera,
+                                     const Rigid3& cam_from_part, const MapOptions& options = {});
+
+/// The map's skin points as a NumPy .npy file: float32, shape (H, W, 3), NaN
+/// where invalid. Written atomically.
+void write_skin_points_npy(const RefractionMap& map, const std::filesystem::path& path);
+
+}  // namespace clearfit
