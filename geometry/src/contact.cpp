@@ -75,9 +75,11 @@ ContactSurface make_contact_surface(const Mesh& mesh, std::vector<char> is_conta
       if (!inserted) parent[find(parent, f)] = find(parent, it->second);
     }
   std::map<int, int> component_of_root;
+  s.component.assign(mesh.num_faces(), -1);
   for (int f : s.faces) {
     auto [it, inserted] = component_of_root.try_emplace(find(parent, f), static_cast<int>(component_of_root.size()));
     if (inserted) s.component_area_mm2.push_back(0);
+    s.component[f] = it->second;
     const double a = mesh.face_area(f);
     s.component_area_mm2[it->second] += a;
     s.area_mm2 += a;

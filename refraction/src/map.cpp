@@ -6,7 +6,6 @@
 
 #include <chrono>
 #include <cmath>
-#include <limits>
 #include <map>
 #include <memory>
 #include <mutex>
@@ -29,14 +28,21 @@ const char* to_string(PixelStatus s) {
   return "?";
 }
 
-void MapOptions::validate() const { indices.validate(); }
+void MapOptions::validate() const {
+  indices.validate();
+  auto fail = [](const std::string& what) { throw std::invalid_argument("MapOptions::" + what); };
+  if (grid_step < 2 || grid_step > 256 || (grid_step & (grid_step - 1)) != 0)
+    fail("grid_step = " + std::to_string(grid_step) + ": must be a power of two in [2, 256]");
+  if (!(tolerance_um > 0) || !std::isfinite(tolerance_um))
+    fail("tolerance_um = " + std::to_string(tolerance_um) + ": must be a finite number > 0");
+}
 
 namespace {
 
 using Clock = std::chrono::steady_clock;
-double ms_since(Clock::time_point t0) {
-  return std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
-}
+double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std::milli>(Clock::now() - t0).count(); }
+constexpr double kRadToDeg = 180.0 / M_PI;
+constexpr float fnan = std::numeric_limits<float>::quiet_NaN();
 
 // Ray directions depend only on the camera's intrinsics: computed once per
 // camera per process and shared.
@@ -55,10 +61,10 @@ std::shared_ptr<const RayGrid> camera_rays(const CameraModel& camera) {
 }
 
 // Pixel bound of the part's image: the box around the projected vertices,
-// widened by a margin for lens curvature between vertices. Empty optional:
-// no bound (some vertex is behind the camera or does not project).
+// widened by a margin for lens curvature between vertices. nullopt: no bound
+// (some vertex is behind the camera or does not project).
 struct PixelBox {
-  double x0, y0, x1, y1;
+  int x0, y0, x1, y1;  // inclusive
 };
 std::optional<PixelBox> part_bound(const Mesh& mesh, const CameraModel& camera, const Rigid3& cam_from_part) {
   std::vector<Vec3> in_cam(mesh.vertices.size());
@@ -67,46 +73,165 @@ std::optional<PixelBox> part_bound(const Mesh& mesh, const CameraModel& camera, 
     if (!(in_cam[i].z() > 0)) return std::nullopt;
   }
   const std::vector<Vec2> q = camera.project(in_cam);
-  PixelBox box{1e300, 1e300, -1e300, -1e300};
+  double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
   for (const Vec2& p : q) {
     if (!p.allFinite()) return std::nullopt;
-    box.x0 = std::min(box.x0, p.x());
-    box.y0 = std::min(box.y0, p.y());
-    box.x1 = std::max(box.x1, p.x());
-    box.y1 = std::max(box.y1, p.y());
+    x0 = std::min(x0, p.x()), y0 = std::min(y0, p.y()), x1 = std::max(x1, p.x()), y1 = std::max(y1, p.y());
   }
-  const double margin = 4.0 + 0.01 * std::max(box.x1 - box.x0, box.y1 - box.y0);
-  return PixelBox{box.x0 - margin, box.y0 - margin, box.x1 + margin, box.y1 + margin};
+  const double margin = 4.0 + 0.01 * std::max(x1 - x0, y1 - y0);
+  auto clampi = [](double v, int hi) { return static_cast<int>(std::clamp(v, -1.0, static_cast<double>(hi) + 1)); };
+  PixelBox box{clampi(std::ceil(x0 - margin), camera.width - 1), clampi(std::ceil(y0 - margin), camera.height - 1),
+               clampi(std::floor(x1 + margin), camera.width - 1), clampi(std::floor(y1 + margin), camera.height - 1)};
+  box.x0 = std::max(box.x0, 0), box.y0 = std::max(box.y0, 0);
+  box.x1 = std::min(box.x1, camera.width - 1), box.y1 = std::min(box.y1, camera.height - 1);
+  return box;
 }
 
 // Smallest t at which a ray leaving a point computed on `face` can no longer
 // re-hit that face's plane through rounding: the point is off the plane by at
-// most ~8 ulp of the largest coordinate involved; along a direction making
+// most a few ulp of the largest coordinate involved; along a direction making
 // cosine `cos_n` with the plane's normal that becomes a distance / cos_n.
-double leave_surface_t(const Mesh& mesh, int face, const Vec3& point, double cos_n, double dir_norm) {
+double leave_surface_t(const Mesh& mesh, int face, const Vec3& point, double cos_n) {
   double scale = point.cwiseAbs().maxCoeff();
   for (int k = 0; k < 3; ++k) scale = std::max(scale, mesh.corner(face, k).cwiseAbs().maxCoeff());
   const double err = 16 * std::numeric_limits<double>::epsilon() * scale;
-  return err / std::max(cos_n, 1e-6) / dir_norm;
+  return err / std::max(cos_n, 1e-6);
 }
 
-constexpr float fnan = std::numeric_limits<float>::quiet_NaN();
+// The two stages of a trace, shared by the batch map and single rays.
+class Tracer {
+ public:
+  Tracer(const TraceScene& scene, const MapOptions& opt)
+      : scene_(scene), n_(opt.indices), smooth_(opt.normals == MapOptions::Normals::smooth),
+        index_matched_(opt.fast_paths && opt.indices.n_medium == opt.indices.n_part) {}
+  bool index_matched() const { return index_matched_; }
+
+  /// Classifies the first hit; returns true and fills `second` when the ray
+  /// goes on into the part.
+  bool enter(const Ray& first, const RayHit& h, SkinSample& s, Ray& second) const {
+    if (first.direction.isZero() || !first.direction.allFinite()) return fail(s, PixelStatus::no_ray);
+    if (!h) return fail(s, PixelStatus::miss);
+    if (!h.front_facing) return fail(s, PixelStatus::back_face);
+    if (scene_.contact->is_contact[h.face]) return fail(s, PixelStatus::contact_first);
+    const Vec3 d = first.direction.normalized();
+    Vec3 nrm = smooth_ ? h.shading_normal : h.geometric_normal;
+    if (nrm.dot(d) >= 0) nrm = h.geometric_normal;  // shading normal turned away near a silhouette
+    s.entry_point = h.point;
+    s.incidence_deg = optics::angle_between(-d, nrm) * kRadToDeg;
+    Vec3 d2 = d;
+    s.transmittance = 1;
+    if (!index_matched_) {
+      const optics::Transmission t = optics::transmit(d, nrm, n_.n_medium, n_.n_part);
+      if (t.tir) return fail(s, PixelStatus::entry_tir);
+      s.transmittance = optics::fresnel(t, n_.n_medium, n_.n_part).T;
+      d2 = t.direction;
+    }
+    s.refracted_dir = d2;
+    second.origin = h.point;
+    second.direction = d2;
+    second.t_min = leave_surface_t(*scene_.mesh, h.face, h.point, std::abs(d2.dot(h.geometric_normal)));
+    second.t_max = std::numeric_limits<double>::infinity();
+    return true;
+  }
+
+  /// Classifies the hit of the refracted ray.
+  void reach(const RayHit& h, SkinSample& s) const {
+    if (!h || !scene_.contact->is_contact[h.face]) { fail(s, PixelStatus::exits_elsewhere); return; }
+    const Vec3& d2 = s.refracted_dir;
+    Vec3 nrm = smooth_ ? h.shading_normal : h.geometric_normal;
+    if (nrm.dot(d2) <= 0) nrm = h.geometric_normal;
+    s.contact_deg = optics::angle_between(d2, nrm) * kRadToDeg;
+    if (n_.n_part != n_.n_skin) {
+      const optics::Transmission t = optics::transmit(d2, nrm, n_.n_part, n_.n_skin);
+      if (t.tir) { fail(s, PixelStatus::contact_tir); return; }
+      s.transmittance *= optics::fresnel(t, n_.n_part, n_.n_skin).T;
+    }
+    s.status = PixelStatus::valid;
+    s.skin_point = h.point;
+    s.face = h.face;
+    s.bary = h.bary;
+  }
+
+  /// Exact trace of a batch of rays (two batched casts).
+  void trace(std::span<const Ray> first, std::span<SkinSample> out) const {
+    std::vector<RayHit> hit(first.size());
+    scene_.index->intersect(first, hit);
+    std::vector<Ray> second(first.size());
+    std::vector<char> goes_on(first.size(), 0);
+    tbb::parallel_for(std::size_t(0), first.size(), [&](std::size_t i) {
+      out[i] = SkinSample{};
+      goes_on[i] = enter(first[i], hit[i], out[i], second[i]);
+    });
+    std::vector<std::uint32_t> which;
+    for (std::size_t i = 0; i < first.size(); ++i)
+      if (goes_on[i]) which.push_back(static_cast<std::uint32_t>(i));
+    std::vector<Ray> compact(which.size());
+    for (std::size_t k = 0; k < which.size(); ++k) compact[k] = second[which[k]];
+    std::vector<RayHit> hit2(which.size());
+    scene_.index->intersect(compact, hit2);
+    tbb::parallel_for(std::size_t(0), which.size(), [&](std::size_t k) { reach(hit2[k], out[which[k]]); });
+  }
+
+ private:
+  static bool fail(SkinSample& s, PixelStatus why) {
+    s.status = why;
+    return false;
+  }
+  const TraceScene& scene_;
+  optics::Indices n_;
+  bool smooth_, index_matched_;
+};
+
+void check_scene(const TraceScene& scene) {
+  if (!scene.mesh || !scene.contact || !scene.index)
+    throw std::invalid_argument("refraction: TraceScene needs mesh, contact and index");
+  if (static_cast<int>(scene.contact->is_contact.size()) != scene.mesh->num_faces())
+    throw std::invalid_argument("refraction: the contact surface belongs to another mesh");
+  if (scene.contact->faces.empty())
+    throw InputError(scene.mesh->source, "contact surface", "has no faces", "choose the faces the skin touches");
+}
+
+// Writes the map's per-pixel fields from one sample.
+void store(RefractionMap& map, const TraceScene& scene, std::size_t p, const SkinSample& s) {
+  map.status[p] = s.status;
+  map.incidence_deg[p] = static_cast<float>(s.incidence_deg);
+  if (s.status != PixelStatus::valid) return;
+  map.skin_point[p] = s.skin_point;
+  map.face[p] = s.face;
+  map.bary[p] = Eigen::Vector2f(static_cast<float>(s.bary[1]), static_cast<float>(s.bary[2]));
+  map.contact_deg[p] = static_cast<float>(s.contact_deg);
+  map.transmittance[p] = static_cast<float>(s.transmittance);
+  if (scene.chart && !scene.chart->uv.empty()) {
+    const auto& f = scene.mesh->faces[s.face];
+    const Vec2 uv = s.bary[0] * scene.chart->uv[f[0]] + s.bary[1] * scene.chart->uv[f[1]] + s.bary[2] * scene.chart->uv[f[2]];
+    map.chart_uv[p] = uv.cast<float>();
+  }
+}
+
+struct Cell {
+  int x0, y0, x1, y1;  // corner pixels (inclusive)
+};
 
 }  // namespace
 
-RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel& camera,
-                                     const Rigid3& cam_from_part, const MapOptions& options) {
+SkinSample trace_skin_ray(const TraceScene& scene, const Vec3& origin, const Vec3& direction, const MapOptions& options) {
+  options.validate();
+  check_scene(scene);
+  Ray first;
+  first.origin = origin;
+  first.direction = direction;
+  SkinSample s;
+  Tracer(scene, options).trace(std::span<const Ray>(&first, 1), std::span<SkinSample>(&s, 1));
+  return s;
+}
+
+RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel& camera, const Rigid3& cam_from_part,
+                                     const MapOptions& options) {
   const auto t_start = Clock::now();
   options.validate();
-  if (!scene.mesh || !scene.contact || !scene.index)
-    throw std::invalid_argument("compute_refraction_map: TraceScene needs mesh, contact and index");
-  const Mesh& mesh = *scene.mesh;
-  const ContactSurface& contact = *scene.contact;
-  if (contact.faces.empty())
-    throw InputError(mesh.source, "contact surface", "has no faces", "choose the faces the skin touches");
-  if (static_cast<int>(contact.is_contact.size()) != mesh.num_faces())
-    throw std::invalid_argument("compute_refraction_map: contact surface belongs to another mesh");
+  check_scene(scene);
   camera.validate();
+  const Mesh& mesh = *scene.mesh;
 
   const int W = camera.width, H = camera.height;
   const std::size_t N = static_cast<std::size_t>(W) * H;
@@ -123,12 +248,13 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
   map.transmittance.assign(N, fnan);
   MapStats& st = map.stats;
   st.pixels = static_cast<long long>(N);
+  st.mode = options.mode == MapOptions::Mode::exact ? "exact" : options.mode == MapOptions::Mode::grid ? "grid" : "adaptive";
 
-  // Whole part behind the camera: a pose error, not a physical outcome.
   bool any_in_front = false;
   for (const Vec3& v : mesh.vertices) any_in_front |= cam_from_part.apply(v).z() > 0;
   if (!any_in_front)
-    throw InputError("", "pose (cam_from_part)", "puts the whole part behind the camera (every vertex has z <= 0 in the camera frame)",
+    throw InputError("", "pose (cam_from_part)",
+                     "puts the whole part behind the camera (every vertex has z <= 0 in the camera frame)",
                      "check the pose's direction and units (mm)");
 
   auto t0 = Clock::now();
@@ -136,105 +262,148 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
   st.unproject_ms = ms_since(t0);
 
   t0 = Clock::now();
-  std::optional<PixelBox> box;
-  if (options.cull) box = part_bound(mesh, camera, cam_from_part);
-  std::vector<std::uint32_t> active;
-  active.reserve(N);
-  for (int y = 0; y < H; ++y)
-    for (int x = 0; x < W; ++x)
-      if (!box || (x >= box->x0 && x <= box->x1 && y >= box->y0 && y <= box->y1))
-        active.push_back(static_cast<std::uint32_t>(map.index(x, y)));
+  PixelBox box{0, 0, W - 1, H - 1};
+  if (options.cull)
+    if (auto b = part_bound(mesh, camera, cam_from_part)) box = *b;
   st.cull_ms = ms_since(t0);
-  st.traced = static_cast<long long>(active.size());
 
   t0 = Clock::now();
+  const Tracer tracer(scene, options);
+  st.fast_path = tracer.index_matched() ? "index-matched" : "none";
   const Rigid3 part_from_cam = cam_from_part.inverse();
-  const Vec3 eye = part_from_cam.translation;
-  const optics::Indices& n = options.indices;
-  const bool index_matched = options.fast_paths && n.n_medium == n.n_part;
-  st.fast_path = index_matched ? "index-matched" : "none";
-  const bool smooth = options.normals == MapOptions::Normals::smooth;
-  const CornerNormals& normals = scene.index->normals();
-
-  std::vector<Ray> first(active.size());
-  tbb::parallel_for(std::size_t(0), active.size(), [&](std::size_t i) {
-    const Vec3& r = rays->rays[active[i]];
-    first[i].origin = eye;
-    first[i].direction = r.allFinite() ? Vec3(part_from_cam.rotation * r) : Vec3::Zero();
-  });
-  std::vector<RayHit> hit1(active.size());
-  scene.index->intersect(first, hit1);
-
-  // Refract at entry; collect the rays that go on.
-  std::vector<Ray> second(active.size());
-  std::vector<char> goes_on(active.size(), 0);
-  std::vector<double> entry_T(active.size(), 0);
-  auto normal_at = [&](const RayHit& h) { return smooth ? h.shading_normal : h.geometric_normal; };
-  tbb::parallel_for(std::size_t(0), active.size(), [&](std::size_t i) {
-    const std::uint32_t p = active[i];
-    const RayHit& h = hit1[i];
-    if (first[i].direction.isZero()) { map.status[p] = PixelStatus::no_ray; return; }
-    if (!h) { map.status[p] = PixelStatus::miss; return; }
-    if (!h.front_facing) { map.status[p] = PixelStatus::back_face; return; }
-    if (contact.is_contact[h.face]) { map.status[p] = PixelStatus::contact_first; return; }
-    const Vec3 d = first[i].direction.normalized();
-    Vec3 nrm = normal_at(h);
-    if (nrm.dot(d) >= 0) nrm = h.geometric_normal;  // shading normal turned away near a silhouette
-    map.incidence_deg[p] = static_cast<float>(optics::angle_between(-d, nrm) * 180 / M_PI);
-    Vec3 d2 = d;
-    double T = 1, cos_n = std::abs(d.dot(h.geometric_normal));
-    if (!index_matched) {
-      const optics::Transmission t = optics::transmit(d, nrm, n.n_medium, n.n_part);
-      if (t.tir) { map.status[p] = PixelStatus::entry_tir; return; }
-      T = optics::fresnel(t, n.n_medium, n.n_part).T;
-      d2 = t.direction;
-      cos_n = std::abs(d2.dot(h.geometric_normal));
+  std::vector<char> traced(N, 0);
+  // Exact trace of the listed pixels that are not traced yet.
+  auto trace_pixels = [&](std::vector<std::uint32_t> pixels) {
+    std::erase_if(pixels, [&](std::uint32_t p) { return traced[p] != 0; });
+    std::sort(pixels.begin(), pixels.end());
+    pixels.erase(std::unique(pixels.begin(), pixels.end()), pixels.end());
+    std::vector<Ray> first(pixels.size());
+    tbb::parallel_for(std::size_t(0), pixels.size(), [&](std::size_t i) {
+      const Vec3& r = rays->rays[pixels[i]];
+      first[i].origin = part_from_cam.translation;
+      first[i].direction = r.allFinite() ? Vec3(part_from_cam.rotation * r) : Vec3::Zero();
+    });
+    std::vector<SkinSample> out(pixels.size());
+    tracer.trace(first, out);
+    for (std::size_t i = 0; i < pixels.size(); ++i) {
+      store(map, scene, pixels[i], out[i]);
+      traced[pixels[i]] = 1;
     }
-    entry_T[i] = T;
-    second[i].origin = h.point;
-    second[i].direction = d2;
-    second[i].t_min = leave_surface_t(mesh, h.face, h.point, cos_n, 1.0);
-    goes_on[i] = 1;
-  });
-  std::vector<RayHit> hit2(active.size());
-  {
-    // Cast only the rays that go on, compacted.
-    std::vector<std::uint32_t> which;
-    for (std::size_t i = 0; i < active.size(); ++i)
-      if (goes_on[i]) which.push_back(static_cast<std::uint32_t>(i));
-    std::vector<Ray> compact(which.size());
-    for (std::size_t k = 0; k < which.size(); ++k) compact[k] = second[which[k]];
-    std::vector<RayHit> out(which.size());
-    scene.index->intersect(compact, out);
-    for (std::size_t k = 0; k < which.size(); ++k) hit2[which[k]] = out[k];
+    st.traced += static_cast<long long>(pixels.size());
+  };
+
+  if (box.x0 <= box.x1 && box.y0 <= box.y1) {
+    if (options.mode == MapOptions::Mode::exact) {
+      std::vector<std::uint32_t> all;
+      all.reserve(static_cast<std::size_t>(box.x1 - box.x0 + 1) * (box.y1 - box.y0 + 1));
+      for (int y = box.y0; y <= box.y1; ++y)
+        for (int x = box.x0; x <= box.x1; ++x) all.push_back(static_cast<std::uint32_t>(map.index(x, y)));
+      trace_pixels(std::move(all));
+    } else {
+      // Quadtree over pixel cells: trace corners, accept (interpolate) or split.
+      const bool adaptive = options.mode == MapOptions::Mode::adaptive;
+      const double tol_mm = options.tolerance_um * 1e-3;
+      const std::vector<int>& component = scene.contact->component;
+      const int S = options.grid_step;
+      std::vector<Cell> cells;
+      for (int y = box.y0; y < box.y1 || y == box.y0; y += S)
+        for (int x = box.x0; x < box.x1 || x == box.x0; x += S)
+          cells.push_back({x, y, std::min(x + S, box.x1), std::min(y + S, box.y1)});
+      auto idx = [&](int x, int y) { return static_cast<std::uint32_t>(map.index(x, y)); };
+      double worst = 0;
+      while (!cells.empty()) {
+        std::vector<std::uint32_t> corners;
+        for (const Cell& c : cells)
+          for (std::uint32_t p : {idx(c.x0, c.y0), idx(c.x1, c.y0), idx(c.x0, c.y1), idx(c.x1, c.y1)}) corners.push_back(p);
+        trace_pixels(std::move(corners));
+        // Every cell with interior pixels gets its centre traced as a check.
+        std::vector<std::uint32_t> centres;
+        for (const Cell& c : cells)
+          if (c.x1 - c.x0 > 1 || c.y1 - c.y0 > 1) centres.push_back(idx((c.x0 + c.x1) / 2, (c.y0 + c.y1) / 2));
+        trace_pixels(centres);
+        std::vector<Cell> next;
+        for (const Cell& c : cells) {
+          if (c.x1 - c.x0 <= 1 && c.y1 - c.y0 <= 1) continue;  // every pixel is a corner: done
+          const std::uint32_t q[4] = {idx(c.x0, c.y0), idx(c.x1, c.y0), idx(c.x0, c.y1), idx(c.x1, c.y1)};
+          const int xc = (c.x0 + c.x1) / 2, yc = (c.y0 + c.y1) / 2;
+          const std::uint32_t centre = idx(xc, yc);
+          auto weights = [&](int x, int y) {
+            const double wx = c.x1 > c.x0 ? double(x - c.x0) / (c.x1 - c.x0) : 0;
+            const double wy = c.y1 > c.y0 ? double(y - c.y0) / (c.y1 - c.y0) : 0;
+            return std::array<double, 4>{(1 - wx) * (1 - wy), wx * (1 - wy), (1 - wx) * wy, wx * wy};
+          };
+          bool accept = false, all_valid = true, same_invalid = true;
+          for (std::uint32_t p : q) {
+            all_valid &= map.status[p] == PixelStatus::valid;
+            same_invalid &= map.status[p] != PixelStatus::valid && map.status[p] == map.status[q[0]];
+          }
+          if (all_valid) {
+            const int comp = component[map.face[q[0]]];
+            for (std::uint32_t p : q) all_valid &= component[map.face[p]] == comp;
+          }
+          if (all_valid && map.status[centre] == PixelStatus::valid) {
+            const auto w = weights(xc, yc);
+            Vec3 guess = Vec3::Zero();
+            for (int k = 0; k < 4; ++k) guess += w[k] * map.skin_point[q[k]];
+            const double err = (guess - map.skin_point[centre]).norm();
+            accept = !adaptive || err <= tol_mm;
+            if (accept) worst = std::max(worst, err);
+          } else if (same_invalid && map.status[centre] == map.status[q[0]]) {
+            accept = true;  // uniformly invalid for the same reason
+          }
+          if (!accept) {
+            const int xm = (c.x0 + c.x1) / 2, ym = (c.y0 + c.y1) / 2;
+            const bool sx = c.x1 - c.x0 > 1, sy = c.y1 - c.y0 > 1;
+            if (sx && sy) next.insert(next.end(), {{c.x0, c.y0, xm, ym}, {xm, c.y0, c.x1, ym}, {c.x0, ym, xm, c.y1}, {xm, ym, c.x1, c.y1}});
+            else if (sx) next.insert(next.end(), {{c.x0, c.y0, xm, c.y1}, {xm, c.y0, c.x1, c.y1}});
+            else next.insert(next.end(), {{c.x0, c.y0, c.x1, ym}, {c.x0, ym, c.x1, c.y1}});
+            continue;
+          }
+          // Fill the untraced interior by bilinear interpolation of the corners.
+          for (int y = c.y0; y <= c.y1; ++y)
+            for (int x = c.x0; x <= c.x1; ++x) {
+              const std::uint32_t p = idx(x, y);
+              if (traced[p]) continue;
+              traced[p] = 2;
+              map.status[p] = map.status[q[0]];
+              if (map.status[p] != PixelStatus::valid) continue;
+              const auto w = weights(x, y);
+              Vec3 point = Vec3::Zero();
+              Eigen::Vector2f uv = Eigen::Vector2f::Zero();
+              float inc = 0, con = 0, T = 0;
+              int nearest = 0;
+              for (int k = 0; k < 4; ++k) {
+                const float wk = static_cast<float>(w[k]);
+                point += w[k] * map.skin_point[q[k]];
+                uv += wk * map.chart_uv[q[k]];
+                inc += wk * map.incidence_deg[q[k]];
+                con += wk * map.contact_deg[q[k]];
+                T += wk * map.transmittance[q[k]];
+                if (w[k] > w[nearest]) nearest = k;
+              }
+              map.skin_point[p] = point;
+              map.chart_uv[p] = uv;
+              map.incidence_deg[p] = inc;
+              map.contact_deg[p] = con;
+              map.transmittance[p] = T;
+              // Face of the nearest corner; barycentrics of the point's projection on its plane.
+              const int f = map.face[q[nearest]];
+              map.face[p] = f;
+              const Vec3 a = mesh.corner(f, 0), e1 = mesh.corner(f, 1) - a, e2 = mesh.corner(f, 2) - a;
+              const Vec3 r = point - a;
+              const double d11 = e1.dot(e1), d12 = e1.dot(e2), d22 = e2.dot(e2), det = d11 * d22 - d12 * d12;
+              if (det > 0) {
+                const double b1 = (d22 * r.dot(e1) - d12 * r.dot(e2)) / det, b2 = (d11 * r.dot(e2) - d12 * r.dot(e1)) / det;
+                map.bary[p] = Eigen::Vector2f(static_cast<float>(b1), static_cast<float>(b2));
+              }
+              ++st.interpolated;
+            }
+        }
+        cells = std::move(next);
+      }
+      st.max_error_um = worst * 1e3;
+    }
   }
-  tbb::parallel_for(std::size_t(0), active.size(), [&](std::size_t i) {
-    if (!goes_on[i]) return;
-    const std::uint32_t p = active[i];
-    const RayHit& h = hit2[i];
-    if (!h || !contact.is_contact[h.face]) { map.status[p] = PixelStatus::exits_elsewhere; return; }
-    const Vec3 d2 = second[i].direction;
-    Vec3 nrm = normal_at(h);
-    if (nrm.dot(d2) <= 0) nrm = h.geometric_normal;
-    map.contact_deg[p] = static_cast<float>(optics::angle_between(d2, nrm) * 180 / M_PI);
-    double T = entry_T[i];
-    if (!index_matched || n.n_part != n.n_skin) {
-      const optics::Transmission t = optics::transmit(d2, nrm, n.n_part, n.n_skin);
-      if (t.tir) { map.status[p] = PixelStatus::contact_tir; return; }
-      T *= optics::fresnel(t, n.n_part, n.n_skin).T;
-    }
-    map.status[p] = PixelStatus::valid;
-    map.skin_point[p] = h.point;
-    map.face[p] = h.face;
-    map.bary[p] = Eigen::Vector2f(static_cast<float>(h.bary[1]), static_cast<float>(h.bary[2]));
-    map.transmittance[p] = static_cast<float>(T);
-    if (scene.chart && !scene.chart->uv.empty()) {
-      const auto& f = mesh.faces[h.face];
-      const Vec2 uv = h.bary[0] * scene.chart->uv[f[0]] + h.bary[1] * scene.chart->uv[f[1]] +
-                      h.bary[2] * scene.chart->uv[f[2]];
-      map.chart_uv[p] = uv.cast<float>();
-    }
-  });
   st.trace_ms = ms_since(t0);
 
   for (PixelStatus s : map.status) ++st.by_status[static_cast<int>(s)];

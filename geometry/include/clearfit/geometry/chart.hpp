@@ -17,6 +17,8 @@ std::string_view to_string(ChartMethod method);
 struct ChartOptions {
   ChartMethod method = ChartMethod::automatic;
   double planar_tolerance_mm = 1e-6;  ///< max distance from the plane to call it flat
+  double component_gap_mm = 2.0;      ///< lscm/arap: space between pieces laid side by side
+  /// Throws std::invalid_argument naming the field if a value is negative or not finite.
   void validate() const;
 };
 
@@ -25,6 +27,7 @@ struct Chart {
   /// Chart coordinates (mm) per mesh vertex; NaN for vertices not on the contact surface.
   std::vector<Vec2> uv;
   std::vector<int> faces;            ///< contact faces covered
+  int components = 0;                ///< edge-connected pieces (charted separately by lscm/arap)
   Vec2 uv_min = Vec2::Zero(), uv_max = Vec2::Zero();
   /// Distortion against the 3D surface, per face then summarised:
   /// area ratio (2D/3D) and angle error (deg).
@@ -35,9 +38,18 @@ struct Chart {
   std::vector<std::string> notes;
 };
 
-/// Throws InputError when the surface cannot be charted (not a topological
-/// disk per component for lscm/arap; not flat for planar).
-/// Several components are charted separately and laid side by side.
+/// Charts the contact faces. Planar: exact orthogonal projection onto the
+/// least-squares plane of the contact vertices (axis_u the main in-plane PCA
+/// axis, or the coordinate axis most parallel to the plane when the spread is
+/// isotropic; its largest component positive; normal facing like the contact
+/// faces; axis_v = normal × axis_u). lscm/arap: CGAL per edge-connected piece,
+/// each scaled so its 2D area equals its 3D area, rotated so its main axis is
+/// u, laid side by side along u with component_gap_mm between them. In both,
+/// faces stay counter-clockwise seen from outside the part (the skin side) and
+/// uv_min = (0, 0). Throws InputError when the surface cannot be charted: not
+/// flat for planar (or flat but folded over); for lscm/arap a piece that is not
+/// a topological disk (checked here: CGAL reports success on closed meshes),
+/// non-manifold, inconsistently oriented, or pieces touching at a vertex.
 Chart compute_chart(const Mesh& mesh, const ContactSurface& contact, const ChartOptions& options = {});
 
 }  // namespace clearfit

@@ -20,6 +20,7 @@ struct ContactSurface {
   std::vector<char> is_contact;    ///< per mesh face
   double area_mm2 = 0;
   int components = 0;              ///< edge-connected pieces
+  std::vector<int> component;      ///< per mesh face: its piece (0..components-1), -1 if not contact
   std::vector<double> component_area_mm2;
   std::string chosen_by;           ///< "group 'skin'", "faces from f.txt", "normal cone ..."
 };

@@ -35,7 +35,10 @@ class RayIndex {
  public:
   virtual ~RayIndex() = default;
   /// First hit along each ray with t in [t_min, t_max]; hits[i].face = -1 on a miss.
-  /// Thread-safe; parallel over the batch (TBB).
+  /// Ties (edges, vertices) go to the lowest face index with the least double t.
+  /// Thread-safe; parallel over the batch (TBB). Throws std::invalid_argument if
+  /// the spans differ in size or a ray has a non-finite origin/direction, a zero
+  /// direction, a NaN t_min/t_max or t_min = -inf. t_min > t_max is a miss.
   virtual void intersect(std::span<const Ray> rays, std::span<RayHit> hits) const = 0;
   RayHit intersect(const Ray& ray) const;
   virtual RayBackend backend() const = 0;
@@ -44,8 +47,12 @@ class RayIndex {
 
  protected:
   RayIndex(const Mesh& mesh, CornerNormals normals) : mesh_(&mesh), normals_(std::move(normals)) {}
-  /// Exact double-precision hit of `ray` with `face` (no range checks on the
-  /// barycentrics beyond clamping tiny negatives), filling every RayHit field.
+  /// Double-precision hit of `ray` with `face` (watertight test of Woop et al.
+  /// 2013), filling every RayHit field; no t-range check. If the double test
+  /// misses the face (the ray passes just outside it, or lies in its plane), the
+  /// barycentrics are clamped to the face and t is that of the ray point
+  /// closest to the clamped point. Never NaN; the geometric normal is zero only
+  /// for a zero-area face.
   RayHit refine_hit(const Ray& ray, int face) const;
 
  private:
@@ -53,7 +60,14 @@ class RayIndex {
   CornerNormals normals_;
 };
 
-/// The mesh must outlive the index. `normals` default: compute_corner_normals(mesh).
+/// The mesh must outlive the index. `normals` default: compute_corner_normals(mesh);
+/// if given it must have one entry per face (else std::invalid_argument).
+/// Every backend returns double-precision hits that equal the brute-force loop's
+/// (the same face, the same t) except, for Embree, where two faces sharing no
+/// vertex lie within ~1e-7 of the mesh's bounding radius of each other along the
+/// ray (float search; see ray_index_embree.cpp). Embree is the default: per
+/// thread 3-4x faster than the CGAL tree on camera rays, 1.3-1.7x on random
+/// rays (bench/ray_index_bench.cpp, 20k-1M triangles).
 std::unique_ptr<RayIndex> make_ray_index(const Mesh& mesh, RayBackend backend = RayBackend::embree,
                                          const CornerNormals* normals = nullptr);
 

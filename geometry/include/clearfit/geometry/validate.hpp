@@ -35,10 +35,23 @@ struct ValidationReport {
   /// exist: distance along the inward normal from contact face centroids.
   std::optional<double> thickness_min_mm, thickness_max_mm;
   std::vector<std::string> warnings;   ///< plain words
-  bool ok() const;                     ///< nothing a user must fix
+  /// Nothing a user must fix: closed, consistently oriented, outward, no
+  /// degenerate or duplicate faces, manifold, no self-intersections (if checked).
+  /// Slivers and several components only warn.
+  bool ok() const;
 };
 
-/// Checks everything; never throws on a bad mesh (it reports), only on bad options.
+/// Checks everything; never throws on a bad mesh (it reports), only on bad
+/// options (std::invalid_argument) or contact flags that do not match the mesh.
+/// Topology (boundary loops, orientation, non-manifold edges and fans,
+/// components) is computed on the raw triangle list, so any soup works; faces
+/// with a repeated vertex are reported as degenerate and left out of it.
+/// Self-intersections use exact predicates (CGAL) on all non-degenerate face
+/// pairs, ignoring faces that only share a vertex or edge. `outward` uses CGAL
+/// orient_to_bound_a_volume (a cavity's normals point into the cavity); the
+/// volume is computed as if oriented outward. Thickness: from each contact
+/// face centroid along the inward normal (open meshes: the stored orientation
+/// is taken as outward) to the first non-contact face (CGAL AABB tree).
 ValidationReport validate_mesh(const Mesh& mesh, const ContactSurface* contact = nullptr,
                                const ValidationOptions& options = {});
 
@@ -48,9 +61,14 @@ struct RepairOptions {
   bool orient_consistently = true;     ///< open meshes: one orientation per component
 };
 
-/// Safe repairs in place. Returns one plain sentence per change ("dropped 2
-/// degenerate faces: 17, 40 (file indices)"); empty if nothing changed.
-/// Keeps Mesh::file_face so face indices still name the file's triangles.
+/// Safe repairs in place, in this order: drop degenerate faces (as
+/// validate_mesh with default options finds them); make each edge-connected
+/// piece consistently oriented (keeping the orientation of the larger area);
+/// for closed manifold meshes reverse the pieces that face inward. Returns one
+/// plain sentence per change, naming counts and the first file face indices
+/// ("dropped 2 degenerate faces ...: file faces 17, 40"), plus one for a step it
+/// could not do; empty if nothing changed. Keeps Mesh::file_face and
+/// face_group in step, so face indices still name the file's triangles.
 std::vector<std::string> repair_mesh(Mesh& mesh, const RepairOptions& options = {});
 
 }  // namespace clearfit

@@ -15,6 +15,7 @@
 #include <clearfit/refraction/optics.hpp>
 
 #include <cstdint>
+#include <limits>
 #include <string>
 #include <vector>
 
@@ -39,7 +40,17 @@ const char* to_string(PixelStatus status);
 struct MapOptions {
   optics::Indices indices;               ///< n_medium (camera side), n_part, n_skin
   enum class Normals { smooth, flat } normals = Normals::smooth;
-  bool fast_paths = true;                ///< use the straight-ray path when n_medium == n_part
+  /// exact: every pixel traced. grid: a pixel grid every grid_step px is
+  /// traced, cells whose four corners are valid on one contact component are
+  /// interpolated bilinearly, others split down to single pixels.
+  /// adaptive: like grid, but a cell is interpolated only if its exactly
+  /// traced centre is within tolerance_um of the interpolation; otherwise it
+  /// is split (quadtree), so cells straddling validity boundaries, creases or
+  /// the critical angle end up traced pixel by pixel.
+  enum class Mode { exact, grid, adaptive } mode = Mode::exact;
+  int grid_step = 16;                    ///< starting cell size, pixels (power of two, 2..256)
+  double tolerance_um = 1.0;             ///< adaptive: accepted interpolation error on the skin, µm
+  bool fast_paths = true;                ///< straight rays when n_medium == n_part; closed form for a flat slab
   bool cull = true;                      ///< trace only pixels inside the part's projected bound
   /// Throws std::invalid_argument naming the field, its value and the rule.
   void validate() const;
@@ -57,10 +68,15 @@ struct TraceScene {
 struct MapStats {
   long long pixels = 0, traced = 0;
   long long by_status[kPixelStatusCount] = {};
+  long long interpolated = 0;            ///< valid pixels filled by interpolation (grid/adaptive)
   double coverage = 0;                   ///< valid / pixels
-  std::string fast_path = "none";        ///< "none" | "index-matched"
+  std::string fast_path = "none";        ///< "none" | "index-matched" | "flat-slab" | both joined by '+'
+  std::string mode = "exact";
   double unproject_ms = 0, cull_ms = 0, trace_ms = 0, total_ms = 0;
-  double max_error_um = 0;               ///< estimated error of the approximation (0: exact trace)
+  /// Estimated error of the approximation: the largest difference between an
+  /// exactly traced cell centre and the interpolation, over accepted cells
+  /// (adaptive), or over every cell (grid). 0 for the exact trace.
+  double max_error_um = 0;
 };
 
 /// Dense per-pixel results, row-major (pixel (x, y) at y * width + x; pixel
@@ -79,6 +95,24 @@ struct RefractionMap {
 
   std::size_t index(int x, int y) const { return static_cast<std::size_t>(y) * width + x; }
 };
+
+/// One traced ray (the per-pixel result, also for callers with their own rays).
+struct SkinSample {
+  PixelStatus status = PixelStatus::miss;
+  Vec3 skin_point = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
+  int face = -1;
+  std::array<double, 3> bary{};
+  Vec3 entry_point = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
+  Vec3 refracted_dir = Vec3::Zero();      ///< unit, inside the part
+  double incidence_deg = std::numeric_limits<double>::quiet_NaN();
+  double contact_deg = std::numeric_limits<double>::quiet_NaN();
+  double transmittance = 0;
+};
+
+/// Traces one ray (origin and direction in the part frame) through the part.
+/// Same rules as compute_refraction_map's exact mode.
+SkinSample trace_skin_ray(const TraceScene& scene, const Vec3& origin, const Vec3& direction,
+                          const MapOptions& options = {});
 
 /// Traces every pixel of `camera` (its imager size), with `cam_from_part`
 /// placing the part. Throws std::invalid_argument on bad options, InputError

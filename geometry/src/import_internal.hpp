@@ -1,0 +1,54 @@
+#pragma once
+// Private to the import*.cpp files (and the import test): one reader per format
+// fills a RawMesh in the file's own order and units; import.cpp checks it,
+// triangulates polygons, converts to millimetres and builds the Mesh.
+#include <clearfit/error.hpp>
+#include <clearfit/geometry/import.hpp>
+#include <Eigen/Core>
+#include <filesystem>
+#include <optional>
+#include <string>
+#include <string_view>
+#include <vector>
+
+namespace clearfit::detail {
+
+struct RawMesh {
+  std::vector<Vec3> vertices;              ///< file units, file order
+  std::vector<std::vector<int>> polygons;  ///< 0-based vertex indices, file order
+  std::vector<int> polygon_group;          ///< empty, or a group index (-1: none) per polygon
+  std::vector<std::string> groups;
+  std::optional<LengthUnit> file_unit;     ///< the unit the file states (3MF, glTF)
+  std::vector<std::string> notes;
+  int index_base = 0;                      ///< how the format numbers vertices/faces in messages (OBJ: 1)
+
+  /// Index of the group called `name`, added if new (one group per distinct name).
+  int group_index(const std::string& name);
+};
+
+/// The path as shown in messages.
+std::string display(const std::filesystem::path& path);
+/// Whole file as bytes; throws InputError if it cannot be read.
+std::string read_file_bytes(const std::filesystem::path& path);
+
+/// Whitespace-separated tokens of a line.
+std::vector<std::string_view> split_ws(std::string_view line);
+/// Parses a whole token as a double ("nan"/"inf" parse, a leading '+' is allowed); false if it is no number.
+bool parse_double(std::string_view token, double& value);
+
+RawMesh read_stl(const std::filesystem::path& path);
+RawMesh read_ply_off(const std::filesystem::path& path, const std::string& ext);  // OpenMesh
+RawMesh read_obj(const std::filesystem::path& path);                              // tinyobjloader
+RawMesh read_3mf(const std::filesystem::path& path);                              // lib3mf
+RawMesh read_gltf(const std::filesystem::path& path, bool binary);               // tinygltf
+
+// Writers take the final (temporary) path; the extension is passed separately.
+void write_openmesh(const Mesh& mesh, const std::filesystem::path& path, const std::string& ext);
+void write_obj(const Mesh& mesh, const std::filesystem::path& path);
+/// `unit`: the unit written into the file (coordinates are converted from mm);
+/// `build_transform`: optional 3×4 affine (row-major, x' = A·x + t) put on every build item.
+void write_3mf(const Mesh& mesh, const std::filesystem::path& path,
+               LengthUnit unit = LengthUnit::millimetre,
+               const Eigen::Matrix<double, 3, 4>* build_transform = nullptr);
+
+}  // namespace clearfit::detail

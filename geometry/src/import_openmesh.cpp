@@ -1,0 +1,301 @@
+// PLY and OFF through OpenMesh's readers, and STL/PLY/OFF writing through its writers.
+// Reading goes through our own BaseImporter, not a mesh kernel: OpenMesh's mesh
+// importer drops faces with repeated vertices and re-adds non-manifold faces
+// with duplicated vertices, which would break the file's face order; the
+// importer below records vertices and faces exactly as the reader announces them.
+// OpenMesh's ASCII readers turn a non-number ("nan", a typo) into a silent stream
+// failure and read garbage after it, so the text is checked first.
+#include "import_internal.hpp"
+
+#include <OpenMesh/Core/IO/MeshIO.hh>
+#include <OpenMesh/Core/IO/IOManager.hh>
+#include <OpenMesh/Core/IO/importer/BaseImporter.hh>
+#include <OpenMesh/Core/Mesh/PolyMesh_ArrayKernelT.hh>
+
+#include <array>
+#include <charconv>
+#include <mutex>
+#include <sstream>
+
+namespace clearfit::detail {
+namespace {
+
+using namespace OpenMesh;
+
+// OpenMesh prints to its global omerr/omlog/omout streams (std::cerr/std::clog/
+// std::cout). While one of these lives they are switched off. (Capturing them into
+// import_notes is not done: mostream::disconnect leaks its target object, which
+// LeakSanitizer reports; our own checks name the faults that matter instead.)
+class OmQuiet {
+ public:
+  OmQuiet() : lock_(mutex()) {
+    for (int i = 0; i < 3; ++i) {
+      was_[i] = streams()[i]->is_enabled();
+      streams()[i]->disable();
+    }
+  }
+  ~OmQuiet() {
+    for (int i = 0; i < 3; ++i)
+      if (was_[i]) streams()[i]->enable();
+  }
+  OmQuiet(const OmQuiet&) = delete;
+  OmQuiet& operator=(const OmQuiet&) = delete;
+
+ private:
+  static std::mutex& mutex() {
+    static std::mutex m;
+    return m;
+  }
+  static std::array<mostream*, 3> streams() { return {&omerr(), &omlog(), &omout()}; }
+  std::lock_guard<std::mutex> lock_;
+  bool was_[3] = {};
+};
+
+// Records what a reader announces, in order; ignores everything but positions and faces.
+class Recorder : public IO::BaseImporter {
+ public:
+  explicit Recorder(RawMesh& raw) : raw_(raw) {}
+  VertexHandle add_vertex(const Vec3f& p) override { return push(Vec3(p[0], p[1], p[2])); }
+  VertexHandle add_vertex(const Vec3d& p) override { return push(Vec3(p[0], p[1], p[2])); }
+  VertexHandle add_vertex() override { return push(Vec3::Zero()); }
+  void set_point(VertexHandle v, const Vec3f& p) override {
+    if (v.idx() >= 0 && v.idx() < static_cast<int>(raw_.vertices.size())) raw_.vertices[v.idx()] = Vec3(p[0], p[1], p[2]);
+  }
+  FaceHandle add_face(const VHandles& vh) override {
+    std::vector<int> poly;
+    poly.reserve(vh.size());
+    for (auto v : vh) poly.push_back(v.idx());
+    raw_.polygons.push_back(std::move(poly));
+    return FaceHandle(static_cast<int>(raw_.polygons.size()) - 1);
+  }
+  size_t n_vertices() const override { return raw_.vertices.size(); }
+  size_t n_faces() const override { return raw_.polygons.size(); }
+  size_t n_edges() const override { return 0; }
+
+  HalfedgeHandle add_edge(VertexHandle, VertexHandle) override { return HalfedgeHandle(); }
+  FaceHandle add_face(HalfedgeHandle) override { return FaceHandle(); }
+  void add_face_texcoords(FaceHandle, VertexHandle, const std::vector<Vec2f>&) override {}
+  void add_face_texcoords(FaceHandle, VertexHandle, const std::vector<Vec3f>&) override {}
+  void set_face_texindex(FaceHandle, int) override {}
+  void set_halfedge(VertexHandle, HalfedgeHandle) override {}
+  void set_normal(VertexHandle, const Vec3f&) override {}
+  void set_normal(VertexHandle, const Vec3d&) override {}
+  void set_color(VertexHandle, const Vec3uc&) override {}
+  void set_color(VertexHandle, const Vec4uc&) override {}
+  void set_color(VertexHandle, const Vec3f&) override {}
+  void set_color(VertexHandle, const Vec4f&) override {}
+  void set_texcoord(VertexHandle, const Vec2f&) override {}
+  void set_status(VertexHandle, const Attributes::StatusInfo&) override {}
+  void set_next(HalfedgeHandle, HalfedgeHandle) override {}
+  void set_face(HalfedgeHandle, FaceHandle) override {}
+  void request_face_texcoords2D() override {}
+  void set_texcoord(HalfedgeHandle, const Vec2f&) override {}
+  void set_texcoord(VertexHandle, const Vec3f&) override {}
+  void set_texcoord(HalfedgeHandle, const Vec3f&) override {}
+  void set_status(HalfedgeHandle, const Attributes::StatusInfo&) override {}
+  void set_color(EdgeHandle, const Vec3uc&) override {}
+  void set_color(EdgeHandle, const Vec4uc&) override {}
+  void set_color(EdgeHandle, const Vec3f&) override {}
+  void set_color(EdgeHandle, const Vec4f&) override {}
+  void set_status(EdgeHandle, const Attributes::StatusInfo&) override {}
+  void set_normal(FaceHandle, const Vec3f&) override {}
+  void set_normal(FaceHandle, const Vec3d&) override {}
+  void set_color(FaceHandle, const Vec3uc&) override {}
+  void set_color(FaceHandle, const Vec4uc&) override {}
+  void set_color(FaceHandle, const Vec3f&) override {}
+  void set_color(FaceHandle, const Vec4f&) override {}
+  void set_status(FaceHandle, const Attributes::StatusInfo&) override {}
+  void add_texture_information(int, std::string) override {}
+
+ private:
+  VertexHandle push(const Vec3& p) {
+    raw_.vertices.push_back(p);
+    return VertexHandle(static_cast<int>(raw_.vertices.size()) - 1);
+  }
+  RawMesh& raw_;
+};
+
+struct Declared {
+  std::uint64_t vertices = 0, faces = 0;
+  bool binary = false;  // OFF: the rare "OFF BINARY" and 4D/nD variants, read from the file as is
+};
+
+std::uint64_t parse_count(std::string_view t, const std::string& name, const std::string& where) {
+  std::uint64_t n = 0;
+  auto [ptr, ec] = std::from_chars(t.data(), t.data() + t.size(), n);
+  if (ec != std::errc() || ptr != t.data() + t.size() || n > 0x7fffffff)
+    throw InputError(name, where, "'" + std::string(t) + "' is not a valid element count");
+  return n;
+}
+
+// Walks the lines of `text` from `pos`; calls f(line_number, tokens) for lines with tokens
+// (comments after '#' removed when `comments`).
+template <class F>
+void for_lines(const std::string& text, size_t pos, int line_no, bool comments, F&& f) {
+  while (pos < text.size()) {
+    size_t end = text.find('\n', pos);
+    if (end == std::string::npos) end = text.size();
+    std::string_view line(text.data() + pos, end - pos);
+    if (comments) line = line.substr(0, line.find('#'));
+    pos = end + 1;
+    ++line_no;
+    auto tok = split_ws(line);
+    if (!tok.empty() && !f(line_no, tok)) return;
+  }
+}
+
+// Every token of an ASCII body must be a finite number; the first `nv` lines are vertices.
+// Returns the number of tokens.
+std::uint64_t check_ascii_body(const std::string& text, size_t pos, int line_no, bool comments,
+                               std::uint64_t nv, const std::string& name) {
+  std::uint64_t tokens = 0, body_line = 0;
+  for_lines(text, pos, line_no, comments, [&](int line, const std::vector<std::string_view>& tok) {
+    std::string where = "line " + std::to_string(line);
+    if (body_line < nv) where += " (vertex " + std::to_string(body_line) + ")";
+    for (auto t : tok) {
+      double v = 0;
+      if (!parse_double(t, v)) throw InputError(name, where, "'" + std::string(t.substr(0, 40)) + "' is not a number");
+      if (!std::isfinite(v)) throw InputError(name, where, "coordinate is not finite (nan or inf)", "fix or re-export the mesh");
+    }
+    tokens += tok.size();
+    ++body_line;
+    return true;
+  });
+  return tokens;
+}
+
+Declared check_off(const std::string& text, const std::string& name) {
+  Declared d;
+  std::vector<std::string_view> head;
+  size_t pos = 0;
+  int line_no = 0;
+  bool binary = false;
+  // Header: "[ST][C][N][4][n]OFF [BINARY]", then the three counts (possibly on the same line).
+  while (pos < text.size() && head.size() < 4) {
+    size_t end = text.find('\n', pos);
+    if (end == std::string::npos) end = text.size();
+    std::string_view line(text.data() + pos, end - pos);
+    pos = end + 1;
+    ++line_no;
+    for (auto t : split_ws(line.substr(0, line.find('#')))) {
+      if (head.empty() && (t.size() < 3 || t.substr(t.size() - 3) != "OFF"))
+        throw InputError(name, "line " + std::to_string(line_no), "an OFF file starts with 'OFF'");
+      if (t == "BINARY") binary = true;
+      else head.push_back(t);
+    }
+  }
+  if (head.size() < 4) throw InputError(name, "header", "missing the vertex, face and edge counts");
+  d.vertices = parse_count(head[1], name, "header");
+  d.faces = parse_count(head[2], name, "header");
+  if (head[0].find("4") != std::string_view::npos || head[0].find("n") != std::string_view::npos || binary) {
+    // Rare variants (4D, n-dimensional, binary): only bound the counts by the size.
+    d.binary = true;
+    if (d.vertices * 12 + d.faces * 4 > text.size())
+      throw InputError(name, "header", "declares " + std::to_string(d.vertices) + " vertices and " +
+                                           std::to_string(d.faces) + " faces, more than the file can hold");
+    return d;
+  }
+  const std::uint64_t tokens = check_ascii_body(text, pos, line_no, true, d.vertices, name);
+  if (tokens < 3 * d.vertices + d.faces)
+    throw InputError(name, "", "declares " + std::to_string(d.vertices) + " vertices and " + std::to_string(d.faces) +
+                                   " faces but holds only " + std::to_string(tokens) + " numbers (truncated?)");
+  return d;
+}
+
+Declared check_ply(const std::string& text, const std::string& name) {
+  Declared d;
+  struct Element {
+    std::string name;
+    std::uint64_t count = 0;
+    std::uint64_t properties = 0;
+  };
+  std::vector<Element> elements;
+  std::string format;
+  size_t pos = 0;
+  int line_no = 0;
+  bool ended = false;
+  while (pos < text.size() && !ended) {
+    size_t end = text.find('\n', pos);
+    if (end == std::string::npos) end = text.size();
+    std::string_view line(text.data() + pos, end - pos);
+    pos = end + 1;
+    ++line_no;
+    const auto tok = split_ws(line);
+    const std::string where = "line " + std::to_string(line_no);
+    if (line_no == 1 && (tok.size() != 1 || tok[0] != "ply")) throw InputError(name, where, "a PLY file starts with 'ply'");
+    if (tok.empty()) continue;
+    if (tok[0] == "format" && tok.size() >= 2) format = tok[1];
+    else if (tok[0] == "element" && tok.size() == 3) elements.push_back({std::string(tok[1]), parse_count(tok[2], name, where), 0});
+    else if (tok[0] == "property" && !elements.empty()) ++elements.back().properties;
+    else if (tok[0] == "end_header") ended = true;
+  }
+  if (!ended) throw InputError(name, "header", "no 'end_header' line");
+  std::uint64_t needed = 0;
+  for (const auto& e : elements) {
+    needed += e.count * std::max<std::uint64_t>(e.properties, 1);
+    if (e.name == "vertex") d.vertices = e.count;
+    if (e.name == "face") d.faces = e.count;
+  }
+  const bool vertex_first = !elements.empty() && elements.front().name == "vertex";
+  std::uint64_t have = text.size() - std::min(pos, text.size());  // binary: at least one byte per value
+  if (format == "ascii") have = check_ascii_body(text, pos, line_no, false, vertex_first ? d.vertices : 0, name);
+  if (needed > have)
+    throw InputError(name, "header", "declares " + std::to_string(needed) + " values (" + std::to_string(d.vertices) +
+                                         " vertices, " + std::to_string(d.faces) + " faces) but the file holds fewer (truncated?)");
+  return d;
+}
+
+}  // namespace
+
+RawMesh read_ply_off(const std::filesystem::path& path, const std::string& ext) {
+  const std::string name = display(path);
+  const std::string text = read_file_bytes(path);
+  const Declared declared = ext == ".off" ? check_off(text, name) : check_ply(text, name);
+  RawMesh raw;
+  Recorder recorder(raw);
+  IO::Options opt;
+  bool ok = false;
+  {
+    OmQuiet quiet;
+    try {
+      if (ext == ".off" && !declared.binary) {
+        // OpenMesh's OFF reader knows no '#' comments (it reads garbage): feed it the text without them.
+        std::string clean = text;
+        for (size_t i = clean.find('#'); i != std::string::npos; i = clean.find('#', i))
+          while (i < clean.size() && clean[i] != '\n') clean[i++] = ' ';
+        std::istringstream in(clean);
+        ok = IO::IOManager().read(in, "off", recorder, opt);
+      } else {
+        ok = IO::IOManager().read(path.string(), recorder, opt);
+      }
+    } catch (const std::exception& e) {
+      throw InputError(name, "", std::string("OpenMesh failed to read it: ") + e.what());
+    }
+  }
+  if (!ok) throw InputError(name, "", "OpenMesh could not read it", "check the file is a valid " + ext.substr(1) + " file");
+  if (raw.vertices.size() != declared.vertices || raw.polygons.size() != declared.faces)
+    throw InputError(name, "", "declares " + std::to_string(declared.vertices) + " vertices and " +
+                                   std::to_string(declared.faces) + " faces but " + std::to_string(raw.vertices.size()) +
+                                   " and " + std::to_string(raw.polygons.size()) + " were read");
+  return raw;
+}
+
+void write_openmesh(const Mesh& mesh, const std::filesystem::path& path, const std::string& ext) {
+  PolyMesh_ArrayKernelT<> om;
+  std::vector<VertexHandle> vh;
+  vh.reserve(mesh.vertices.size());
+  OmQuiet quiet;  // add_face prints when it meets a non-manifold face
+  auto point = [](const Vec3& p) { return PolyMesh_ArrayKernelT<>::Point(float(p.x()), float(p.y()), float(p.z())); };
+  for (const auto& p : mesh.vertices) vh.push_back(om.add_vertex(point(p)));
+  for (const auto& f : mesh.faces) {
+    FaceHandle fh;
+    if (f[0] != f[1] && f[1] != f[2] && f[0] != f[2]) fh = om.add_face(vh[f[0]], vh[f[1]], vh[f[2]]);
+    if (!fh.is_valid())  // repeated or non-manifold: the face gets its own copies of its vertices
+      om.add_face(om.add_vertex(point(mesh.vertices[f[0]])), om.add_vertex(point(mesh.vertices[f[1]])),
+                  om.add_vertex(point(mesh.vertices[f[2]])));
+  }
+  const IO::Options opt = ext == ".off" ? IO::Options::Default : IO::Options::Binary;
+  if (!IO::write_mesh(om, path.string(), opt, 9)) throw std::runtime_error("OpenMesh could not write it");
+}
+
+}  // namespace clearfit::detail
