@@ -1,3 +1,5 @@
+#include "chart_locator.hpp"
+
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/error.hpp>
 #include <clearfit/refraction/map.hpp>
@@ -109,7 +111,8 @@ class Tracer {
   /// Classifies the first hit; returns true and fills `second` when the ray
   /// goes on into the part.
   bool enter(const Ray& first, const RayHit& h, SkinSample& s, Ray& second) const {
-    if (first.direction.isZero() || !first.direction.allFinite()) return fail(s, PixelStatus::no_ray);
+    if (first.direction.isZero() || !first.direction.allFinite() || !first.origin.allFinite())
+      return fail(s, PixelStatus::no_ray);
     if (!h) return fail(s, PixelStatus::miss);
     if (!h.front_facing) return fail(s, PixelStatus::back_face);
     if (scene_.contact->is_contact[h.face]) return fail(s, PixelStatus::contact_first);
@@ -117,6 +120,8 @@ class Tracer {
     Vec3 nrm = smooth_ ? h.shading_normal : h.geometric_normal;
     if (nrm.dot(d) >= 0) nrm = h.geometric_normal;  // shading normal turned away near a silhouette
     s.entry_point = h.point;
+    s.entry_face = h.face;
+    s.entry_normal = nrm;
     s.incidence_deg = optics::angle_between(-d, nrm) * kRadToDeg;
     Vec3 d2 = d;
     s.transmittance = 1;
@@ -154,8 +159,24 @@ class Tracer {
 
   /// Exact trace of a batch of rays (two batched casts).
   void trace(std::span<const Ray> first, std::span<SkinSample> out) const {
+    // Rays without a usable direction (the lens could not unproject) are not cast.
     std::vector<RayHit> hit(first.size());
-    scene_.index->intersect(first, hit);
+    {
+      std::vector<std::uint32_t> castable;
+      castable.reserve(first.size());
+      for (std::size_t i = 0; i < first.size(); ++i)
+        if (!first[i].direction.isZero() && first[i].direction.allFinite() && first[i].origin.allFinite())
+          castable.push_back(static_cast<std::uint32_t>(i));
+      if (castable.size() == first.size()) {
+        scene_.index->intersect(first, hit);
+      } else {
+        std::vector<Ray> compact(castable.size());
+        for (std::size_t k = 0; k < castable.size(); ++k) compact[k] = first[castable[k]];
+        std::vector<RayHit> out1(castable.size());
+        scene_.index->intersect(compact, out1);
+        for (std::size_t k = 0; k < castable.size(); ++k) hit[castable[k]] = out1[k];
+      }
+    }
     std::vector<Ray> second(first.size());
     std::vector<char> goes_on(first.size(), 0);
     tbb::parallel_for(std::size_t(0), first.size(), [&](std::size_t i) {
@@ -214,14 +235,20 @@ struct Cell {
 
 }  // namespace
 
-SkinSample trace_skin_ray(const TraceScene& scene, const Vec3& origin, const Vec3& direction, const MapOptions& options) {
+void trace_skin_rays(const TraceScene& scene, std::span<const Ray> rays, std::span<SkinSample> out,
+                     const MapOptions& options) {
   options.validate();
   check_scene(scene);
-  Ray first;
-  first.origin = origin;
-  first.direction = direction;
+  if (rays.size() != out.size()) throw std::invalid_argument("trace_skin_rays: rays and out differ in size");
+  std::vector<Ray> first(rays.size());
+  for (std::size_t i = 0; i < rays.size(); ++i) first[i] = Ray{rays[i].origin, rays[i].direction};
+  Tracer(scene, options).trace(first, out);
+}
+
+SkinSample trace_skin_ray(const TraceScene& scene, const Vec3& origin, const Vec3& direction, const MapOptions& options) {
+  const Ray ray{origin, direction};
   SkinSample s;
-  Tracer(scene, options).trace(std::span<const Ray>(&first, 1), std::span<SkinSample>(&s, 1));
+  trace_skin_rays(scene, std::span<const Ray>(&ray, 1), std::span<SkinSample>(&s, 1), options);
   return s;
 }
 
@@ -311,6 +338,43 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
           cells.push_back({x, y, std::min(x + S, box.x1), std::min(y + S, box.y1)});
       auto idx = [&](int x, int y) { return static_cast<std::uint32_t>(map.index(x, y)); };
       double worst = 0;
+      std::vector<std::uint32_t> retrace;
+      // Interpolation inside a cell from its four (valid) corners. With a
+      // chart: chart coordinates are interpolated (smooth: no surface sag) and
+      // put back on the mesh by point location, so the point lies on the
+      // surface. Without one: the skin points themselves, with the face of the
+      // nearest corner. nullopt: the location fell outside the chart.
+      std::optional<refraction_detail::ChartLocator> locator;
+      if (scene.chart && !scene.chart->uv.empty()) locator.emplace(mesh, *scene.chart);
+      struct Interp {
+        Vec3 point;
+        int face;
+        std::array<double, 3> bary;
+        Vec2 uv;
+      };
+      auto interpolate = [&](const std::uint32_t (&q)[4], const std::array<double, 4>& w) -> std::optional<Interp> {
+        if (locator) {
+          Vec2 uv = Vec2::Zero();
+          for (int k = 0; k < 4; ++k) uv += w[k] * map.chart_uv[q[k]].cast<double>();
+          const auto hit = locator->locate(uv);
+          if (!hit) return std::nullopt;
+          return Interp{hit->point, hit->face, hit->bary, uv};
+        }
+        Interp r{Vec3::Zero(), -1, {}, Vec2::Constant(std::numeric_limits<double>::quiet_NaN())};
+        int nearest = 0;
+        for (int k = 0; k < 4; ++k) {
+          r.point += w[k] * map.skin_point[q[k]];
+          if (w[k] > w[nearest]) nearest = k;
+        }
+        r.face = map.face[q[nearest]];
+        const Vec3 a = mesh.corner(r.face, 0), e1 = mesh.corner(r.face, 1) - a, e2 = mesh.corner(r.face, 2) - a;
+        const Vec3 d = r.point - a;
+        const double d11 = e1.dot(e1), d12 = e1.dot(e2), d22 = e2.dot(e2), det = d11 * d22 - d12 * d12;
+        const double b1 = det > 0 ? (d22 * d.dot(e1) - d12 * d.dot(e2)) / det : 0;
+        const double b2 = det > 0 ? (d11 * d.dot(e2) - d12 * d.dot(e1)) / det : 0;
+        r.bary = {1 - b1 - b2, b1, b2};
+        return r;
+      };
       while (!cells.empty()) {
         std::vector<std::uint32_t> corners;
         for (const Cell& c : cells)
@@ -342,11 +406,9 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
             for (std::uint32_t p : q) all_valid &= component[map.face[p]] == comp;
           }
           if (all_valid && map.status[centre] == PixelStatus::valid) {
-            const auto w = weights(xc, yc);
-            Vec3 guess = Vec3::Zero();
-            for (int k = 0; k < 4; ++k) guess += w[k] * map.skin_point[q[k]];
-            const double err = (guess - map.skin_point[centre]).norm();
-            accept = !adaptive || err <= tol_mm;
+            const auto guess = interpolate(q, weights(xc, yc));
+            const double err = guess ? (guess->point - map.skin_point[centre]).norm() : 1e300;
+            accept = guess && (!adaptive || err <= tol_mm);
             if (accept) worst = std::max(worst, err);
           } else if (same_invalid && map.status[centre] == map.status[q[0]]) {
             accept = true;  // uniformly invalid for the same reason
@@ -359,46 +421,43 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
             else next.insert(next.end(), {{c.x0, c.y0, c.x1, ym}, {c.x0, ym, c.x1, c.y1}});
             continue;
           }
-          // Fill the untraced interior by bilinear interpolation of the corners.
+          // Fill the untraced interior from the corners.
           for (int y = c.y0; y <= c.y1; ++y)
             for (int x = c.x0; x <= c.x1; ++x) {
               const std::uint32_t p = idx(x, y);
               if (traced[p]) continue;
-              traced[p] = 2;
-              map.status[p] = map.status[q[0]];
-              if (map.status[p] != PixelStatus::valid) continue;
+              if (map.status[q[0]] != PixelStatus::valid) {
+                traced[p] = 2;
+                map.status[p] = map.status[q[0]];
+                continue;
+              }
               const auto w = weights(x, y);
-              Vec3 point = Vec3::Zero();
-              Eigen::Vector2f uv = Eigen::Vector2f::Zero();
+              const auto r = interpolate(q, w);
+              if (!r) {
+                retrace.push_back(p);
+                continue;
+              }
+              traced[p] = 2;
+              map.status[p] = PixelStatus::valid;
+              map.skin_point[p] = r->point;
+              map.face[p] = r->face;
+              map.bary[p] = Eigen::Vector2f(static_cast<float>(r->bary[1]), static_cast<float>(r->bary[2]));
+              map.chart_uv[p] = r->uv.cast<float>();
               float inc = 0, con = 0, T = 0;
-              int nearest = 0;
               for (int k = 0; k < 4; ++k) {
                 const float wk = static_cast<float>(w[k]);
-                point += w[k] * map.skin_point[q[k]];
-                uv += wk * map.chart_uv[q[k]];
                 inc += wk * map.incidence_deg[q[k]];
                 con += wk * map.contact_deg[q[k]];
                 T += wk * map.transmittance[q[k]];
-                if (w[k] > w[nearest]) nearest = k;
               }
-              map.skin_point[p] = point;
-              map.chart_uv[p] = uv;
               map.incidence_deg[p] = inc;
               map.contact_deg[p] = con;
               map.transmittance[p] = T;
-              // Face of the nearest corner; barycentrics of the point's projection on its plane.
-              const int f = map.face[q[nearest]];
-              map.face[p] = f;
-              const Vec3 a = mesh.corner(f, 0), e1 = mesh.corner(f, 1) - a, e2 = mesh.corner(f, 2) - a;
-              const Vec3 r = point - a;
-              const double d11 = e1.dot(e1), d12 = e1.dot(e2), d22 = e2.dot(e2), det = d11 * d22 - d12 * d12;
-              if (det > 0) {
-                const double b1 = (d22 * r.dot(e1) - d12 * r.dot(e2)) / det, b2 = (d11 * r.dot(e2) - d12 * r.dot(e1)) / det;
-                map.bary[p] = Eigen::Vector2f(static_cast<float>(b1), static_cast<float>(b2));
-              }
               ++st.interpolated;
             }
         }
+        trace_pixels(std::move(retrace));
+        retrace.clear();
         cells = std::move(next);
       }
       st.max_error_um = worst * 1e3;

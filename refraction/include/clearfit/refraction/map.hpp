@@ -103,6 +103,8 @@ struct SkinSample {
   int face = -1;
   std::array<double, 3> bary{};
   Vec3 entry_point = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
+  int entry_face = -1;
+  Vec3 entry_normal = Vec3::Zero();       ///< unit normal used for refraction at entry (outward)
   Vec3 refracted_dir = Vec3::Zero();      ///< unit, inside the part
   double incidence_deg = std::numeric_limits<double>::quiet_NaN();
   double contact_deg = std::numeric_limits<double>::quiet_NaN();
@@ -113,6 +115,10 @@ struct SkinSample {
 /// Same rules as compute_refraction_map's exact mode.
 SkinSample trace_skin_ray(const TraceScene& scene, const Vec3& origin, const Vec3& direction,
                           const MapOptions& options = {});
+/// The same for a batch of rays (two batched casts; parallel). Only the rays'
+/// origin and direction are used. out.size() must equal rays.size().
+void trace_skin_rays(const TraceScene& scene, std::span<const Ray> rays, std::span<SkinSample> out,
+                     const MapOptions& options = {});
 
 /// Traces every pixel of `camera` (its imager size), with `cam_from_part`
 /// placing the part. Throws std::invalid_argument on bad options, InputError

@@ -1,0 +1,58 @@
+#include "chart_locator.hpp"
+
+#include <cmath>
+
+namespace clearfit::refraction_detail {
+
+ChartLocator::ChartLocator(const Mesh& mesh, const Chart& chart) : mesh_(mesh), chart_(chart) {
+  if (chart.faces.empty()) return;
+  Vec2 hi = chart.uv[mesh.faces[chart.faces[0]][0]];
+  lo_ = hi;
+  for (int f : chart.faces)
+    for (int v : mesh.faces[f]) lo_ = lo_.cwiseMin(chart.uv[v]), hi = hi.cwiseMax(chart.uv[v]);
+  const double area = std::max((hi - lo_).prod(), 1e-300);
+  cell_ = std::max(std::sqrt(area / static_cast<double>(chart.faces.size())), 1e-12);
+  nx_ = std::max(1, static_cast<int>(std::ceil((hi.x() - lo_.x()) / cell_)) + 1);
+  ny_ = std::max(1, static_cast<int>(std::ceil((hi.y() - lo_.y()) / cell_)) + 1);
+  std::vector<std::pair<int, int>> entries;  // (cell, face)
+  for (int f : chart.faces) {
+    Vec2 a = chart.uv[mesh.faces[f][0]], b = a;
+    for (int v : mesh.faces[f]) a = a.cwiseMin(chart.uv[v]), b = b.cwiseMax(chart.uv[v]);
+    const int x0 = static_cast<int>((a.x() - lo_.x()) / cell_), x1 = static_cast<int>((b.x() - lo_.x()) / cell_);
+    const int y0 = static_cast<int>((a.y() - lo_.y()) / cell_), y1 = static_cast<int>((b.y() - lo_.y()) / cell_);
+    for (int y = y0; y <= std::min(y1, ny_ - 1); ++y)
+      for (int x = x0; x <= std::min(x1, nx_ - 1); ++x) entries.emplace_back(y * nx_ + x, f);
+  }
+  start_.assign(static_cast<std::size_t>(nx_) * ny_ + 1, 0);
+  for (const auto& e : entries) ++start_[e.first + 1];
+  for (std::size_t i = 1; i < start_.size(); ++i) start_[i] += start_[i - 1];
+  faces_.resize(entries.size());
+  std::vector<int> fill(start_.begin(), start_.end() - 1);
+  for (const auto& e : entries) faces_[fill[e.first]++] = e.second;
+}
+
+std::optional<ChartHit> ChartLocator::locate(const Vec2& uv) const {
+  if (nx_ == 0 || !uv.allFinite()) return std::nullopt;
+  const int x = static_cast<int>(std::floor((uv.x() - lo_.x()) / cell_));
+  const int y = static_cast<int>(std::floor((uv.y() - lo_.y()) / cell_));
+  if (x < 0 || y < 0 || x >= nx_ || y >= ny_) return std::nullopt;
+  const int c = y * nx_ + x;
+  for (int i = start_[c]; i < start_[c + 1]; ++i) {
+    const int f = faces_[i];
+    const auto& t = mesh_.faces[f];
+    const Vec2 a = chart_.uv[t[0]], e1 = chart_.uv[t[1]] - a, e2 = chart_.uv[t[2]] - a, r = uv - a;
+    const double det = e1.x() * e2.y() - e1.y() * e2.x();
+    if (det == 0) continue;
+    const double b1 = (r.x() * e2.y() - r.y() * e2.x()) / det, b2 = (e1.x() * r.y() - e1.y() * r.x()) / det;
+    const double b0 = 1 - b1 - b2, tol = -1e-9;
+    if (b0 < tol || b1 < tol || b2 < tol) continue;
+    ChartHit h;
+    h.face = f;
+    h.bary = {b0, b1, b2};
+    h.point = b0 * mesh_.corner(f, 0) + b1 * mesh_.corner(f, 1) + b2 * mesh_.corner(f, 2);
+    return h;
+  }
+  return std::nullopt;
+}
+
+}  // namespace clearfit::refraction_detail
