@@ -6,7 +6,8 @@
 #include <clearfit/camera/camera_model.hpp>
 #include <clearfit/camera/pose.hpp>
 #include <clearfit/error.hpp>
-#include <clearfit/refraction/map.hpp>
+#include <clearfit/refraction/map_cache.hpp>
+#include <cstdlib>
 #include <cmath>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -20,8 +21,14 @@ void check_index(const char* option, double value) {
                      "air 1.0, water 1.333, acrylic 1.49, clear resins 1.49-1.55");
 }
 
+std::filesystem::path default_cache_dir() {
+  if (const char* xdg = std::getenv("XDG_CACHE_HOME"); xdg && *xdg) return std::filesystem::path(xdg) / "clearfit";
+  if (const char* home = std::getenv("HOME"); home && *home) return std::filesystem::path(home) / ".cache" / "clearfit";
+  return {};
+}
+
 nlohmann::json stats_json(const RefractionMap& map, const std::string& mesh, const std::string& camera,
-                          const MapOptions& opt) {
+                          const MapOptions& opt, const std::string& cache) {
   const MapStats& s = map.stats;
   nlohmann::json by_status;
   for (int k = 0; k < kPixelStatusCount; ++k) by_status[to_string(static_cast<PixelStatus>(k))] = s.by_status[k];
@@ -31,7 +38,11 @@ nlohmann::json stats_json(const RefractionMap& map, const std::string& mesh, con
           {"image", {{"width", map.width}, {"height", map.height}}},
           {"indices", {{"medium", opt.indices.n_medium}, {"part", opt.indices.n_part}, {"skin", opt.indices.n_skin}}},
           {"normals", opt.normals == MapOptions::Normals::smooth ? "smooth" : "flat"},
-          {"mode", "exact"},
+          {"mode", s.mode},
+          {"grid_step", opt.mode == MapOptions::Mode::exact ? nlohmann::json(nullptr) : nlohmann::json(opt.grid_step)},
+          {"tolerance_um", opt.mode == MapOptions::Mode::adaptive ? nlohmann::json(opt.tolerance_um) : nlohmann::json(nullptr)},
+          {"interpolated", s.interpolated},
+          {"cache", cache},
           {"fast_path", s.fast_path},
           {"pixels", s.pixels},
           {"traced", s.traced},
@@ -44,7 +55,10 @@ nlohmann::json stats_json(const RefractionMap& map, const std::string& mesh, con
 
 Run add_map(CLI::App& app) {
   struct Opts {
-    std::string mesh, camera, pose, out, stats, normals = "smooth", mode = "exact";
+    std::string mesh, camera, pose, out, stats, normals = "smooth", mode = "exact", chart = "auto", cache;
+    int grid_step = 16;
+    double tolerance_um = 1.0;
+    bool no_cache = false;
     MeshOptions mesh_opt;
     ContactOptions contact;
     double ior = 1.49, medium_ior = 1.0, skin_ior = 1.4;
@@ -60,7 +74,14 @@ Run add_map(CLI::App& app) {
   add_mesh_options(*sub, o->mesh_opt);
   add_contact_options(*sub, o->contact);
   sub->add_option("--normals", o->normals, "Shading normals at the surfaces")->check(CLI::IsMember({"smooth", "flat"}))->capture_default_str();
-  sub->add_option("--mode", o->mode, "Tracing mode (exact: every pixel traced)")->check(CLI::IsMember({"exact"}))->capture_default_str();
+  sub->add_option("--mode", o->mode, "exact: every pixel traced; grid: cells of --grid-step px interpolated; adaptive: cells refined until within --tolerance-um")
+      ->check(CLI::IsMember({"exact", "grid", "adaptive"}))->capture_default_str();
+  sub->add_option("--grid-step", o->grid_step, "Starting cell size for grid/adaptive, pixels (power of two, 2..256)")->capture_default_str();
+  sub->add_option("--tolerance-um", o->tolerance_um, "Adaptive: accepted interpolation error on the skin, micrometres")->capture_default_str();
+  sub->add_option("--chart", o->chart, "Chart of the contact surface used for interpolation (none: interpolate in 3D)")
+      ->check(CLI::IsMember({"auto", "planar", "lscm", "arap", "none"}))->capture_default_str();
+  sub->add_option("--cache", o->cache, "Cache folder for maps (default: $XDG_CACHE_HOME/clearfit or ~/.cache/clearfit)");
+  sub->add_flag("--no-cache", o->no_cache, "Neither read nor write the map cache");
   sub->add_option("--out", o->out, "Output MAP.npy: float32 H x W x 3 skin points (part frame, mm), NaN where invalid")->required();
   sub->add_option("--stats", o->stats, "Output STATS.json: coverage, invalid pixels by reason, fast path, timings");
 
@@ -83,18 +104,42 @@ Run add_map(CLI::App& app) {
     opt.indices.n_medium = o->medium_ior;
     opt.indices.n_skin = o->skin_ior;
     opt.normals = o->normals == "flat" ? MapOptions::Normals::flat : MapOptions::Normals::smooth;
+    opt.mode = o->mode == "grid" ? MapOptions::Mode::grid : o->mode == "adaptive" ? MapOptions::Mode::adaptive : MapOptions::Mode::exact;
+    opt.grid_step = o->grid_step;
+    opt.tolerance_um = o->tolerance_um;
+    if (opt.grid_step < 2 || opt.grid_step > 256 || (opt.grid_step & (opt.grid_step - 1)) != 0)
+      throw InputError("", "--grid-step " + std::to_string(o->grid_step), "must be a power of two from 2 to 256");
+    if (!(std::isfinite(opt.tolerance_um) && opt.tolerance_um > 0))
+      throw InputError("", "--tolerance-um", "must be a positive number of micrometres");
+    std::optional<Chart> chart;
+    if (o->chart != "none" && opt.mode != MapOptions::Mode::exact) {
+      ChartOptions copt;
+      copt.method = parse_chart_method(o->chart);
+      try {
+        chart = compute_chart(mesh, contact, copt);
+      } catch (const InputError& e) {
+        if (o->chart != "auto") throw;
+        std::cerr << "clearfit: warning: no chart of the contact surface (" << e.what()
+                  << "); interpolating in 3D, which needs smaller cells on curved parts\n";
+      }
+    }
     NormalOptions nopt;
     const CornerNormals normals = compute_corner_normals(mesh, nopt);
     const auto index = make_ray_index(mesh, RayBackend::embree, &normals);
-    const RefractionMap map = compute_refraction_map({&mesh, &contact, index.get(), nullptr}, camera, cam_from_part, opt);
+    const std::filesystem::path cache_dir = o->no_cache ? std::filesystem::path() : o->cache.empty() ? default_cache_dir() : std::filesystem::path(o->cache);
+    bool hit = false;
+    const RefractionMap map = compute_refraction_map_cached({&mesh, &contact, index.get(), chart ? &*chart : nullptr},
+                                                            camera, cam_from_part, opt, cache_dir, &hit);
+    const std::string cache = cache_dir.empty() ? "off" : hit ? "hit" : "miss";
 
-    const nlohmann::json stats = stats_json(map, o->mesh, o->camera, opt);
+    const nlohmann::json stats = stats_json(map, o->mesh, o->camera, opt, cache);
     // Both outputs are rendered before either is written, so a failure leaves neither.
     write_skin_points_npy(map, o->out);
     if (!o->stats.empty()) write_file_atomically(o->stats, stats.dump(2) + "\n");
     std::cout << "map " << map.width << " x " << map.height << ": " << map.stats.by_status[0] << " valid pixels ("
               << static_cast<int>(map.stats.coverage * 1000) / 10.0 << " %), traced " << map.stats.traced
-              << ", fast path " << map.stats.fast_path << ", " << static_cast<int>(map.stats.total_ms) << " ms\n";
+              << ", fast path " << map.stats.fast_path << ", mode " << map.stats.mode
+              << (hit ? ", from the cache" : ", " + std::to_string(static_cast<int>(map.stats.total_ms)) + " ms") << "\n";
     for (int k = 1; k < kPixelStatusCount; ++k)
       if (map.stats.by_status[k] > 0)
         std::cout << "  " << to_string(static_cast<PixelStatus>(k)) << ": " << map.stats.by_status[k] << "\n";

@@ -61,7 +61,7 @@ case "${1:-}" in
   asan)
     install_deps
     build build-asan -DCLEARFIT_SANITIZE=ON -DCLEARFIT_BUILD_BENCHMARKS=OFF
-    ASAN_OPTIONS=detect_leaks=1 run_tests build-asan
+    ASAN_OPTIONS=detect_leaks=1 CLEARFIT_RAY_TEST_SCALE=0.1 run_tests build-asan
     ;;
   *)
     sed -n '2,8p' "$0"

@@ -46,20 +46,48 @@ double ms_since(Clock::time_point t0) { return std::chrono::duration<double, std
 constexpr double kRadToDeg = 180.0 / M_PI;
 constexpr float fnan = std::numeric_limits<float>::quiet_NaN();
 
-// Ray directions depend only on the camera's intrinsics: computed once per
-// camera per process and shared.
-std::shared_ptr<const RayGrid> camera_rays(const CameraModel& camera) {
-  static std::mutex mutex;
-  static std::map<std::uint64_t, std::shared_ptr<const RayGrid>> cache;
-  const std::uint64_t key = camera.intrinsics_hash();
-  {
-    std::lock_guard lock(mutex);
-    if (auto it = cache.find(key); it != cache.end()) return it->second;
+// Ray directions depend only on the camera's intrinsics: unprojected once per
+// camera per process, lazily, only for the pixels a map actually traces
+// (mrcal's unprojection is iterative and costs more than the ray casts).
+class CameraRays {
+ public:
+  explicit CameraRays(const CameraModel& camera)
+      : camera_(camera), rays_(static_cast<std::size_t>(camera.width) * camera.height), known_(rays_.size(), 0) {}
+  /// Fills `out[i]` with the unit ray of pixel index `pixels[i]` (NaN if the lens cannot unproject it).
+  void get(std::span<const std::uint32_t> pixels, std::span<Vec3> out) {
+    std::lock_guard lock(mutex_);
+    std::vector<std::uint32_t> missing;
+    for (std::uint32_t p : pixels)
+      if (!known_[p]) missing.push_back(p);
+    if (!missing.empty()) {
+      std::vector<Vec2> q(missing.size());
+      for (std::size_t i = 0; i < missing.size(); ++i)
+        q[i] = Vec2(missing[i] % camera_.width, missing[i] / camera_.width);
+      std::vector<Vec3> r(missing.size());
+      camera_.unproject(q, r);
+      for (std::size_t i = 0; i < missing.size(); ++i) {
+        rays_[missing[i]] = r[i].allFinite() ? Vec3(r[i].normalized()) : Vec3::Zero();
+        known_[missing[i]] = 1;
+      }
+    }
+    for (std::size_t i = 0; i < pixels.size(); ++i) out[i] = rays_[pixels[i]];
   }
-  auto grid = std::make_shared<const RayGrid>(unproject_image(camera, 1));
+
+ private:
+  std::mutex mutex_;
+  CameraModel camera_;
+  std::vector<Vec3> rays_;
+  std::vector<char> known_;
+};
+
+std::shared_ptr<CameraRays> camera_rays(const CameraModel& camera) {
+  static std::mutex mutex;
+  static std::map<std::uint64_t, std::shared_ptr<CameraRays>> cache;
   std::lock_guard lock(mutex);
-  if (cache.size() > 8) cache.clear();
-  return cache.emplace(key, std::move(grid)).first->second;
+  const std::uint64_t key = camera.intrinsics_hash();
+  if (auto it = cache.find(key); it != cache.end()) return it->second;
+  if (cache.size() >= 4) cache.clear();
+  return cache.emplace(key, std::make_shared<CameraRays>(camera)).first->second;
 }
 
 // Pixel bound of the part's image: the box around the projected vertices,
@@ -284,11 +312,8 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
                      "puts the whole part behind the camera (every vertex has z <= 0 in the camera frame)",
                      "check the pose's direction and units (mm)");
 
+  const std::shared_ptr<CameraRays> rays = camera_rays(camera);
   auto t0 = Clock::now();
-  const std::shared_ptr<const RayGrid> rays = camera_rays(camera);
-  st.unproject_ms = ms_since(t0);
-
-  t0 = Clock::now();
   PixelBox box{0, 0, W - 1, H - 1};
   if (options.cull)
     if (auto b = part_bound(mesh, camera, cam_from_part)) box = *b;
@@ -304,11 +329,14 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
     std::erase_if(pixels, [&](std::uint32_t p) { return traced[p] != 0; });
     std::sort(pixels.begin(), pixels.end());
     pixels.erase(std::unique(pixels.begin(), pixels.end()), pixels.end());
+    std::vector<Vec3> dirs(pixels.size());
+    const auto tu = Clock::now();
+    rays->get(pixels, dirs);
+    st.unproject_ms += ms_since(tu);
     std::vector<Ray> first(pixels.size());
     tbb::parallel_for(std::size_t(0), pixels.size(), [&](std::size_t i) {
-      const Vec3& r = rays->rays[pixels[i]];
       first[i].origin = part_from_cam.translation;
-      first[i].direction = r.allFinite() ? Vec3(part_from_cam.rotation * r) : Vec3::Zero();
+      first[i].direction = part_from_cam.rotation * dirs[i];
     });
     std::vector<SkinSample> out(pixels.size());
     tracer.trace(first, out);
@@ -463,7 +491,7 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
       st.max_error_um = worst * 1e3;
     }
   }
-  st.trace_ms = ms_since(t0);
+  st.trace_ms = ms_since(t0) - st.unproject_ms;
 
   for (PixelStatus s : map.status) ++st.by_status[static_cast<int>(s)];
   st.coverage = static_cast<double>(st.by_status[0]) / static_cast<double>(std::max<long long>(1, st.pixels));

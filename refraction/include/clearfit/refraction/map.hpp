@@ -72,6 +72,9 @@ struct MapStats {
   double coverage = 0;                   ///< valid / pixels
   std::string fast_path = "none";        ///< "none" | "index-matched" | "flat-slab" | both joined by '+'
   std::string mode = "exact";
+  /// unproject: the lens model's pixel -> ray for the traced pixels not
+  /// unprojected before for this camera in this process (cached per camera);
+  /// trace: everything else of the tracing.
   double unproject_ms = 0, cull_ms = 0, trace_ms = 0, total_ms = 0;
   /// Estimated error of the approximation: the largest difference between an
   /// exactly traced cell centre and the interpolation, over accepted cells
