@@ -1,4 +1,5 @@
 #include "chart_locator.hpp"
+#include "flat_slab.hpp"
 
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/error.hpp>
@@ -118,11 +119,13 @@ std::optional<PixelBox> part_bound(const Mesh& mesh, const CameraModel& camera, 
 }
 
 // Smallest t at which a ray leaving a point computed on `face` can no longer
-// re-hit that face's plane through rounding: the point is off the plane by at
-// most a few ulp of the largest coordinate involved; along a direction making
-// cosine `cos_n` with the plane's normal that becomes a distance / cos_n.
-double leave_surface_t(const Mesh& mesh, int face, const Vec3& point, double cos_n) {
-  double scale = point.cwiseAbs().maxCoeff();
+// re-hit that face's plane through rounding: the point (computed as
+// origin + t·d of the incoming ray) is off the plane by at most a few ulp of
+// the largest magnitude involved (its coordinates, the face's vertices, the
+// incoming ray's origin and length); along a direction making cosine `cos_n`
+// with the plane's normal that becomes a distance / cos_n.
+double leave_surface_t(const Mesh& mesh, int face, const Vec3& point, double cos_n, double incoming_scale) {
+  double scale = std::max(point.cwiseAbs().maxCoeff(), incoming_scale);
   for (int k = 0; k < 3; ++k) scale = std::max(scale, mesh.corner(face, k).cwiseAbs().maxCoeff());
   const double err = 16 * std::numeric_limits<double>::epsilon() * scale;
   return err / std::max(cos_n, 1e-6);
@@ -133,8 +136,17 @@ class Tracer {
  public:
   Tracer(const TraceScene& scene, const MapOptions& opt)
       : scene_(scene), n_(opt.indices), smooth_(opt.normals == MapOptions::Normals::smooth),
-        index_matched_(opt.fast_paths && opt.indices.n_medium == opt.indices.n_part) {}
+        index_matched_(opt.fast_paths && opt.indices.n_medium == opt.indices.n_part) {
+    if (opt.fast_paths)
+      slab_ = refraction_detail::FlatSlab::detect(*scene.mesh, *scene.contact, scene.index->normals());
+  }
   bool index_matched() const { return index_matched_; }
+  bool flat_slab() const { return slab_ != nullptr; }
+  std::string fast_path() const {
+    std::string s = index_matched_ ? "index-matched" : "";
+    if (slab_) s += s.empty() ? "flat-slab" : "+flat-slab";
+    return s.empty() ? "none" : s;
+  }
 
   /// Classifies the first hit; returns true and fills `second` when the ray
   /// goes on into the part.
@@ -162,7 +174,8 @@ class Tracer {
     s.refracted_dir = d2;
     second.origin = h.point;
     second.direction = d2;
-    second.t_min = leave_surface_t(*scene_.mesh, h.face, h.point, std::abs(d2.dot(h.geometric_normal)));
+    const double incoming = first.origin.cwiseAbs().maxCoeff() + std::abs(h.t) * first.direction.norm();
+    second.t_min = leave_surface_t(*scene_.mesh, h.face, h.point, std::abs(d2.dot(h.geometric_normal)), incoming);
     second.t_max = std::numeric_limits<double>::infinity();
     return true;
   }
@@ -195,6 +208,14 @@ class Tracer {
       for (std::size_t i = 0; i < first.size(); ++i)
         if (!first[i].direction.isZero() && first[i].direction.allFinite() && first[i].origin.allFinite())
           castable.push_back(static_cast<std::uint32_t>(i));
+      if (slab_) {
+        // Closed form where the ray enters through the outer plane; the rest go to the index.
+        std::vector<char> solved(first.size(), 0);
+        tbb::parallel_for(std::size_t(0), castable.size(), [&](std::size_t k) {
+          if (auto h = slab_->enter(first[castable[k]])) hit[castable[k]] = *h, solved[castable[k]] = 1;
+        });
+        std::erase_if(castable, [&](std::uint32_t i) { return solved[i] != 0; });
+      }
       if (castable.size() == first.size()) {
         scene_.index->intersect(first, hit);
       } else {
@@ -214,6 +235,16 @@ class Tracer {
     std::vector<std::uint32_t> which;
     for (std::size_t i = 0; i < first.size(); ++i)
       if (goes_on[i]) which.push_back(static_cast<std::uint32_t>(i));
+    if (slab_) {
+      std::vector<char> solved(first.size(), 0);
+      tbb::parallel_for(std::size_t(0), which.size(), [&](std::size_t k) {
+        if (auto h = slab_->reach(second[which[k]])) {
+          reach(*h, out[which[k]]);
+          solved[which[k]] = 1;
+        }
+      });
+      std::erase_if(which, [&](std::uint32_t i) { return solved[i] != 0; });
+    }
     std::vector<Ray> compact(which.size());
     for (std::size_t k = 0; k < which.size(); ++k) compact[k] = second[which[k]];
     std::vector<RayHit> hit2(which.size());
@@ -229,6 +260,7 @@ class Tracer {
   const TraceScene& scene_;
   optics::Indices n_;
   bool smooth_, index_matched_;
+  std::unique_ptr<refraction_detail::FlatSlab> slab_;
 };
 
 void check_scene(const TraceScene& scene) {
@@ -321,7 +353,7 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
 
   t0 = Clock::now();
   const Tracer tracer(scene, options);
-  st.fast_path = tracer.index_matched() ? "index-matched" : "none";
+  st.fast_path = tracer.fast_path();
   const Rigid3 part_from_cam = cam_from_part.inverse();
   std::vector<char> traced(N, 0);
   // Exact trace of the listed pixels that are not traced yet.
