@@ -10,5 +10,6 @@ using Run = std::function<int()>;
 
 Run add_mesh_info(CLI::App& app);
 Run add_map(CLI::App& app);
+Run add_bench(CLI::App& app);
 
 }  // namespace clearfit::cli

@@ -21,6 +21,7 @@ int main(int argc, char** argv) {
   };
   add(clearfit::cli::add_mesh_info);
   add(clearfit::cli::add_map);
+  add(clearfit::cli::add_bench);
 
   try {
     app.parse(argc, argv);

@@ -1,6 +1,7 @@
 // clearfit map: the refraction map of a part seen by a camera (pixel -> skin point).
 #include "commands.hpp"
 #include "options.hpp"
+#include "scene.hpp"
 
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/camera/camera_model.hpp>
@@ -55,7 +56,7 @@ nlohmann::json stats_json(const RefractionMap& map, const std::string& mesh, con
 
 Run add_map(CLI::App& app) {
   struct Opts {
-    std::string mesh, camera, pose, out, stats, normals = "smooth", mode = "exact", chart = "auto", cache;
+    std::string scene, mesh, camera, pose, out, stats, normals = "smooth", mode = "exact", chart = "auto", cache;
     int grid_step = 16;
     double tolerance_um = 1.0;
     bool no_cache = false;
@@ -65,8 +66,9 @@ Run add_map(CLI::App& app) {
   };
   auto o = std::make_shared<Opts>();
   CLI::App* sub = app.add_subcommand("map", "Refraction map: for every camera pixel, the skin point it sees through the part");
-  sub->add_option("--mesh", o->mesh, "Part mesh (.stl .obj .ply .off .3mf .gltf .glb)")->required();
-  sub->add_option("--camera", o->camera, "Camera model (mrcal .cameramodel)")->required();
+  sub->add_option("--scene", o->scene, "Scene file (YAML) giving any of the options below; the command line wins");
+  sub->add_option("--mesh", o->mesh, "Part mesh (.stl .obj .ply .off .3mf .gltf .glb)");
+  sub->add_option("--camera", o->camera, "Camera model (mrcal .cameramodel)");
   sub->add_option("--pose", o->pose, "Pose file (clearfit.pose/1 JSON) with cam_from_part; default: the cameramodel's extrinsics");
   sub->add_option("--ior", o->ior, "Index of refraction of the part")->capture_default_str();
   sub->add_option("--medium-ior", o->medium_ior, "Index of the camera-side medium (air 1.0, water 1.333, oil ~1.5)")->capture_default_str();
@@ -82,10 +84,54 @@ Run add_map(CLI::App& app) {
       ->check(CLI::IsMember({"auto", "planar", "lscm", "arap", "none"}))->capture_default_str();
   sub->add_option("--cache", o->cache, "Cache folder for maps (default: $XDG_CACHE_HOME/clearfit or ~/.cache/clearfit)");
   sub->add_flag("--no-cache", o->no_cache, "Neither read nor write the map cache");
-  sub->add_option("--out", o->out, "Output MAP.npy: float32 H x W x 3 skin points (part frame, mm), NaN where invalid")->required();
+  sub->add_option("--out", o->out, "Output MAP.npy: float32 H x W x 3 skin points (part frame, mm), NaN where invalid");
   sub->add_option("--stats", o->stats, "Output STATS.json: coverage, invalid pixels by reason, fast path, timings");
 
-  return [o]() {
+  return [o, sub]() {
+    if (!o->scene.empty()) {
+      // Scene values fill what the command line did not give.
+      const SceneFile sc = read_scene(o->scene);
+      auto take = [&](const char* option, auto& field, const auto& value) {
+        if (value && sub->count(option) == 0) field = *value;
+      };
+      take("--mesh", o->mesh, sc.mesh);
+      take("--units", o->mesh_opt.units, sc.units);
+      take("--camera", o->camera, sc.camera);
+      take("--pose", o->pose, sc.pose);
+      take("--ior", o->ior, sc.ior);
+      take("--medium-ior", o->medium_ior, sc.medium_ior);
+      take("--skin-ior", o->skin_ior, sc.skin_ior);
+      const bool cli_contact = sub->count("--contact-group") + sub->count("--contact-faces") + sub->count("--contact-normal") > 0;
+      if (!cli_contact) {
+        if (sc.contact_group) o->contact.group = *sc.contact_group;
+        if (sc.contact_faces) o->contact.faces_file = *sc.contact_faces;
+        if (sc.contact_normal) o->contact.normal = *sc.contact_normal;
+      }
+      take("--contact-angle", o->contact.angle_deg, sc.contact_angle_deg);
+      take("--normals", o->normals, sc.normals);
+      take("--mode", o->mode, sc.mode);
+      take("--chart", o->chart, sc.chart);
+      take("--grid-step", o->grid_step, sc.grid_step);
+      take("--tolerance-um", o->tolerance_um, sc.tolerance_um);
+      take("--out", o->out, sc.out_map);
+      take("--stats", o->stats, sc.out_stats);
+      // The scene's output folders are created (nothing is written into them yet).
+      for (const auto& out : {sc.out_map, sc.out_stats})
+        if (out && !std::filesystem::path(*out).parent_path().empty())
+          std::filesystem::create_directories(std::filesystem::path(*out).parent_path());
+      auto member = [&](const std::string& key, const std::string& v, std::initializer_list<const char*> ok) {
+        for (const char* k : ok)
+          if (v == k) return;
+        throw InputError(o->scene, "key '" + key + "'", "'" + v + "' is not one of the allowed values");
+      };
+      member("map.normals", o->normals, {"smooth", "flat"});
+      member("map.mode", o->mode, {"exact", "grid", "adaptive"});
+      member("map.chart", o->chart, {"auto", "planar", "lscm", "arap", "none"});
+    }
+    for (auto [value, option, key] : {std::tuple{&o->mesh, "--mesh", "mesh"}, {&o->camera, "--camera", "camera"},
+                                      {&o->out, "--out", "outputs.map"}})
+      if (value->empty())
+        throw InputError("", std::string(option), "is required", std::string("give it on the command line or as '") + key + "' in a --scene file");
     check_index("--ior", o->ior);
     check_index("--medium-ior", o->medium_ior);
     check_index("--skin-ior", o->skin_ior);

@@ -52,6 +52,9 @@ case "${1:-}" in
     build build
     echo "== clearfit mesh-info on the bundled wristband sample"
     ./build/cli/clearfit mesh-info samples/wristband/wristband.obj --contact-group contact
+    echo "== clearfit map: the wristband's refraction map (samples/wristband/scene.yaml)"
+    ./build/cli/clearfit map --scene samples/wristband/scene.yaml
+    echo "== outputs: samples/wristband/out/map.npy and samples/wristband/out/map-stats.json"
     ;;
   test)
     install_deps
