@@ -161,7 +161,7 @@ cv::Mat plot(const std::vector<Row>& rows) {
   for (int d = static_cast<int>(ex0); d <= static_cast<int>(ex1); ++d) {
     const int x = px(std::pow(10.0, d));
     cv::line(img, {x, top}, {x, H - bottom}, grey, 1);
-    cv::putText(img, d == static_cast<int>(ex0) ? "exact" : "1e" + std::to_string(d), {x - 18, H - bottom + 22}, font, 0.5, black, 1, cv::LINE_AA);
+    cv::putText(img, d == static_cast<int>(ex0) ? "0" : "1e" + std::to_string(d), {x - 18, H - bottom + 22}, font, 0.5, black, 1, cv::LINE_AA);
   }
   for (int d = static_cast<int>(ty0); d <= static_cast<int>(ty1); ++d) {
     const int y = py(std::pow(10.0, d));
@@ -211,7 +211,7 @@ cv::Mat plot(const std::vector<Row>& rows) {
   }
   int ly = top + 40 + 24 * static_cast<int>(series.size());
   const cv::Scalar dark(60, 60, 60);
-  const std::pair<MapOptions::Mode, const char*> keys[] = {{MapOptions::Mode::exact, "exact (error 0)"},
+  const std::pair<MapOptions::Mode, const char*> keys[] = {{MapOptions::Mode::exact, "exact (error 0, at x = 0)"},
                                                            {MapOptions::Mode::grid, "grid (step 2..32)"},
                                                            {MapOptions::Mode::adaptive, "adaptive (tol.)"}};
   for (const auto& [kind, text] : keys) {

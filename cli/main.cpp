@@ -10,7 +10,8 @@
 int main(int argc, char** argv) {
   CLI::App app{"clearfit " CLEARFIT_VERSION
                " - where a wearable device presses on the body, seen through its clear printed part"};
-  app.require_subcommand(1);
+  app.require_subcommand(0, 1);
+  app.failure_message(CLI::FailureMessage::help);
   app.set_version_flag("--version", std::string("clearfit ") + CLEARFIT_VERSION);
   std::map<CLI::App*, clearfit::cli::Run> runs;
   auto add = [&](clearfit::cli::Run (*make)(CLI::App&)) {
@@ -31,6 +32,7 @@ int main(int argc, char** argv) {
   try {
     for (CLI::App* sub : app.get_subcommands())
       if (auto it = runs.find(sub); it != runs.end()) return it->second();
+    std::cerr << "clearfit: error: a subcommand is required\n" << app.help();
     return 2;
   } catch (const clearfit::InputError& e) {
     std::cerr << "clearfit: error: " << e.what() << "\n";

@@ -9,6 +9,7 @@
 #include <clearfit/error.hpp>
 #include <clearfit/refraction/map_cache.hpp>
 #include <cstdlib>
+#include <sstream>
 #include <cmath>
 #include <iostream>
 #include <nlohmann/json.hpp>
@@ -18,7 +19,7 @@ namespace clearfit::cli {
 namespace {
 void check_index(const char* option, double value) {
   if (!(std::isfinite(value) && value >= 1.0))
-    throw InputError("", option, "must be a finite index of refraction >= 1, got " + std::to_string(value),
+    throw InputError("", option, "must be a finite index of refraction >= 1, got " + (std::ostringstream() << value).str(),
                      "air 1.0, water 1.333, acrylic 1.49, clear resins 1.49-1.55");
 }
 
@@ -174,14 +175,38 @@ Run add_map(CLI::App& app) {
     const auto index = make_ray_index(mesh, RayBackend::embree, &normals);
     const std::filesystem::path cache_dir = o->no_cache ? std::filesystem::path() : o->cache.empty() ? default_cache_dir() : std::filesystem::path(o->cache);
     bool hit = false;
-    const RefractionMap map = compute_refraction_map_cached({&mesh, &contact, index.get(), chart ? &*chart : nullptr},
-                                                            camera, cam_from_part, opt, cache_dir, &hit);
+    // Output folders are checked before the work, so a bad path fails fast and leaves nothing.
+    for (const std::string& out : {o->out, o->stats})
+      if (!out.empty()) {
+        const auto parent = std::filesystem::path(out).parent_path();
+        if (!parent.empty() && !std::filesystem::is_directory(parent))
+          throw InputError(out, "", "the folder " + parent.string() + " does not exist", "create it first");
+      }
+    const std::string pose_source = o->pose.empty() ? o->camera + " (extrinsics)" : o->pose;
+    RefractionMap map;
+    try {
+      map = compute_refraction_map_cached({&mesh, &contact, index.get(), chart ? &*chart : nullptr}, camera,
+                                          cam_from_part, opt, cache_dir, &hit);
+    } catch (const InputError& e) {
+      if (e.element().rfind("pose", 0) != 0) throw;
+      throw InputError(pose_source, "cam_from_part", e.what());
+    }
+    if (map.stats.by_status[0] == 0)
+      throw InputError(pose_source, "cam_from_part",
+                       "no pixel of " + o->camera + " sees the contact surface through the part",
+                       "check the pose, the camera model and the contact surface");
     const std::string cache = cache_dir.empty() ? "off" : hit ? "hit" : "miss";
 
     const nlohmann::json stats = stats_json(map, o->mesh, o->camera, opt, cache);
     // Both outputs are rendered before either is written, so a failure leaves neither.
     write_skin_points_npy(map, o->out);
-    if (!o->stats.empty()) write_file_atomically(o->stats, stats.dump(2) + "\n");
+    try {
+      if (!o->stats.empty()) write_file_atomically(o->stats, stats.dump(2) + "\n");
+    } catch (...) {
+      std::error_code ignored;
+      std::filesystem::remove(o->out, ignored);  // both outputs or neither
+      throw;
+    }
     std::cout << "map " << map.width << " x " << map.height << ": " << map.stats.by_status[0] << " valid pixels ("
               << static_cast<int>(map.stats.coverage * 1000) / 10.0 << " %), traced " << map.stats.traced
               << ", fast path " << map.stats.fast_path << ", mode " << map.stats.mode

@@ -101,6 +101,17 @@ std::optional<Problem> find_problem(const CameraModel& m) {
                    ""};
   if (!m.cam_from_part.rotation.allFinite() || !m.cam_from_part.translation.allFinite())
     return Problem{"extrinsics", "is not finite", ""};
+  // The imager size must belong to this lens: a principal point more than half
+  // the imager outside it means the size and the intrinsics disagree (a model
+  // calibrated at another resolution, or a wrong imagersize).
+  const double cx = m.intrinsics[2], cy = m.intrinsics[3];
+  if (cx < -0.5 - 0.5 * m.width || cx > m.width - 0.5 + 0.5 * m.width || cy < -0.5 - 0.5 * m.height ||
+      cy > m.height - 0.5 + 0.5 * m.height)
+    return Problem{"imagersize",
+                   std::to_string(m.width) + " x " + std::to_string(m.height) +
+                       " does not fit the lens: its principal point (" + std::to_string(cx) + ", " +
+                       std::to_string(cy) + ") lies far outside the imager",
+                   "use the image size the camera was calibrated at"};
   return std::nullopt;
 }
 

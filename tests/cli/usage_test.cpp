@@ -1,0 +1,73 @@
+// End-to-end tests of the clearfit front end itself: --version, --help, and
+// command lines it cannot parse (exit 2 with the usage).
+#include "cli_support.hpp"
+
+#include <regex>
+
+namespace clearfit::cli_test {
+namespace {
+
+// The version from the project() call of the top CMakeLists.txt.
+std::string project_version() {
+  const std::string cmake = read_text(fs::path(CLEARFIT_SAMPLES_DIR) / ".." / "CMakeLists.txt");
+  std::smatch m;
+  if (!std::regex_search(cmake, m, std::regex(R"(project\(clearfit\s+VERSION\s+([0-9.]+))")))
+    throw std::runtime_error("no project(clearfit VERSION ...) in CMakeLists.txt");
+  return m[1];
+}
+
+class Usage : public CliTest {};
+
+TEST_F(Usage, VersionPrintsTheProjectVersion) {
+  const RunResult r = run({"--version"});
+  EXPECT_EQ(r.exit_code, 0) << r;
+  EXPECT_EQ(r.out, "clearfit " + project_version() + "\n") << r;
+  EXPECT_LT(r.seconds, 2.0) << r;
+}
+
+TEST_F(Usage, HelpListsTheCommands) {
+  const RunResult r = run({"--help"});
+  EXPECT_EQ(r.exit_code, 0) << r;
+  EXPECT_NE(r.out.find("mesh-info"), std::string::npos) << r;
+  EXPECT_NE(r.out.find("map"), std::string::npos) << r;
+  const RunResult m = run({"map", "--help"});
+  EXPECT_EQ(m.exit_code, 0) << m;
+  for (const char* option : {"--mesh", "--camera", "--pose", "--ior", "--out", "--stats", "--contact-group"})
+    EXPECT_NE(m.out.find(option), std::string::npos) << option << "\n" << m;
+}
+
+// Both the message and the usage (what the commands are) must reach the user.
+void expect_usage_error(const RunResult& r, const std::string& complaint) {
+  EXPECT_EQ(r.exit_code, 2) << r;
+  const std::string all = r.out + r.err;
+  EXPECT_NE(all.find(complaint), std::string::npos) << "should say '" << complaint << "'\n" << r;
+  EXPECT_NE(all.find("mesh-info"), std::string::npos) << "should show the usage with the commands\n" << r;
+  EXPECT_NE(all.find("map"), std::string::npos) << r;
+}
+
+TEST_F(Usage, NoSubcommand) {
+  expect_usage_error(run({}), "subcommand");
+}
+
+TEST_F(Usage, UnknownSubcommand) {
+  const RunResult r = run({"frobnicate"});
+  expect_usage_error(r, "frobnicate");
+}
+
+TEST_F(Usage, UnknownOption) {
+  expect_usage_error(run({"--frobnicate"}), "--frobnicate");
+  const RunResult r = run({"mesh-info", "part.obj", "--frobnicate"});
+  EXPECT_EQ(r.exit_code, 2) << r;
+  EXPECT_NE((r.out + r.err).find("--frobnicate"), std::string::npos) << r;
+  EXPECT_NE((r.out + r.err).find("--contact-group"), std::string::npos) << "should show mesh-info's usage\n" << r;
+}
+
+TEST_F(Usage, ConflictingContactOptions) {
+  const RunResult r = run({"mesh-info", "part.obj", "--contact-group", "a", "--contact-faces", "f.txt"});
+  EXPECT_EQ(r.exit_code, 2) << r;
+  EXPECT_NE(r.err.find("--contact-group"), std::string::npos) << r;
+  EXPECT_TRUE(listing(work()).empty());
+}
+
+}  // namespace
+}  // namespace clearfit::cli_test
