@@ -1,0 +1,76 @@
+// clearfit map --scene: a scene file gives the options, the command line wins,
+// bad keys and types are named with their line.
+#include <clearfit/camera/camera_model.hpp>
+#include <clearfit/geometry/import.hpp>
+#include <clearfit/geometry/shapes.hpp>
+#include <nlohmann/json.hpp>
+
+#include "cli_support.hpp"
+
+using namespace clearfit;
+using namespace clearfit::cli_test;
+
+namespace {
+class Scene : public CliTest {
+ protected:
+  void SetUp() override {
+    CliTest::SetUp();
+    fs::create_directories(work() / "part");
+    save_mesh(shapes::slab(40, 30, 3, 2), work() / "part" / "slab.obj");
+    CameraModel cam;
+    cam.lensmodel = "LENSMODEL_PINHOLE";
+    cam.intrinsics = {60, 60, 31.5, 23.5};
+    cam.width = 64;
+    cam.height = 48;
+    cam.cam_from_part.rotation = Eigen::Vector3d(1, -1, -1).asDiagonal();
+    cam.cam_from_part.translation = Vec3(0, 0, 60);
+    write_cameramodel(cam, work() / "part" / "cam.cameramodel");
+  }
+  void scene(const std::string& text) { write_text(work() / "part" / "scene.yaml", text); }
+};
+const char* kScene = R"(mesh: slab.obj
+ior: 1.49
+contact:
+  group: contact
+camera: cam.cameramodel
+map:
+  mode: adaptive
+  tolerance_um: 2.0
+outputs:
+  map: out/map.npy
+  stats: out/stats.json
+)";
+}  // namespace
+
+TEST_F(Scene, PathsAreRelativeToTheSceneAndTheCommandLineWins) {
+  scene(kScene);
+  RunResult r = run({"map", "--scene", "part/scene.yaml", "--no-cache"});
+  ASSERT_EQ(r.exit_code, 0) << r;
+  ASSERT_TRUE(fs::exists(work() / "part" / "out" / "map.npy"));
+  auto stats = nlohmann::json::parse(read_text(work() / "part" / "out" / "stats.json"));
+  EXPECT_EQ(stats["mode"], "adaptive");
+  EXPECT_EQ(stats["tolerance_um"], 2.0);
+  EXPECT_EQ(stats["indices"]["part"], 1.49);
+  EXPECT_EQ(stats["fast_path"], "flat-slab");
+  r = run({"map", "--scene", "part/scene.yaml", "--no-cache", "--mode", "exact", "--ior", "1.55", "--stats", "s.json"});
+  ASSERT_EQ(r.exit_code, 0) << r;
+  stats = nlohmann::json::parse(read_text(work() / "s.json"));
+  EXPECT_EQ(stats["mode"], "exact");
+  EXPECT_EQ(stats["indices"]["part"], 1.55);
+}
+
+TEST_F(Scene, BadKeysAndTypesAreNamedWithTheirLine) {
+  scene("mesh: slab.obj\nmapp:\n  mode: exact\n");
+  expect_input_error({"map", "--scene", "part/scene.yaml"}, {"scene.yaml", "line 2", "'mapp'"});
+  scene("mesh: slab.obj\nior: glass\n");
+  expect_input_error({"map", "--scene", "part/scene.yaml"}, {"scene.yaml", "line 2", "'ior'", "number"});
+  scene("mesh: slab.obj\ncontact:\n  normal: [0, 0]\n");
+  expect_input_error({"map", "--scene", "part/scene.yaml"}, {"line 3", "contact.normal"});
+  scene("mesh: [slab.obj\n");
+  expect_input_error({"map", "--scene", "part/scene.yaml"}, {"scene.yaml", "not valid YAML"});
+  scene("mesh: slab.obj\nmap:\n  mode: fast\n");
+  expect_input_error({"map", "--scene", "part/scene.yaml"}, {"map.mode", "'fast'"});
+  expect_input_error({"map", "--scene", "part/missing.yaml"}, {"missing.yaml"});
+  scene("");
+  expect_input_error({"map", "--scene", "part/scene.yaml"}, {"scene.yaml", "empty"});
+}
