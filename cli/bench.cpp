@@ -83,7 +83,7 @@ std::vector<ModeSpec> parse_modes(const std::string& s) {
       } else if (kind == "adaptive" && !arg.empty()) {
         m.mode = MapOptions::Mode::adaptive;
         m.tol_um = std::stod(arg, &used);
-        m.step = 16;
+        m.step = 16;  // the quadtree's starting cell (MapOptions' default)
       } else {
         used = std::string::npos;
       }
@@ -230,7 +230,7 @@ Run add_bench(CLI::App& app) {
   struct Opts {
     std::string sizes = "640x480,1920x1080", shapes = "slab,band,dome,bumps",
                 modes = "exact,grid:2,grid:8,grid:32,adaptive:0.1,adaptive:1,adaptive:10", csv, plot;
-    int repeat = 2;
+    int repeat = 3;
     bool fresh_memory = false;
   };
   auto o = std::make_shared<Opts>();
@@ -329,12 +329,14 @@ Run add_bench(CLI::App& app) {
                 "# errors: |skin point - exact| over pixels valid in both; vdiff = pixels valid in only one\n",
                 o->repeat, o->fresh_memory ? ", fresh memory" : "");
     print_table(rows);
+    // Both outputs are rendered before either is written.
+    const std::string csv = csv_text(rows, o->repeat);
+    const cv::Mat img = o->plot.empty() ? cv::Mat() : plot(rows);
     if (!o->csv.empty()) {
-      write_file_atomically(o->csv, csv_text(rows, o->repeat));
+      write_file_atomically(o->csv, csv);
       std::cout << "wrote " << o->csv << "\n";
     }
     if (!o->plot.empty()) {
-      const cv::Mat img = plot(rows);
       write_path_atomically(o->plot, [&](const std::filesystem::path& tmp) {
         if (!cv::imwrite(tmp.string(), img)) throw std::runtime_error("cv::imwrite failed");
       });

@@ -7,6 +7,7 @@
 #include <clearfit/camera/camera_model.hpp>
 #include <clearfit/camera/pose.hpp>
 #include <clearfit/error.hpp>
+#include <clearfit/refraction/inverse_map.hpp>
 #include <clearfit/refraction/map_cache.hpp>
 #include <cstdlib>
 #include <sstream>
@@ -57,9 +58,9 @@ nlohmann::json stats_json(const RefractionMap& map, const std::string& mesh, con
 
 Run add_map(CLI::App& app) {
   struct Opts {
-    std::string scene, mesh, camera, pose, out, stats, normals = "smooth", mode = "exact", chart = "auto", cache;
+    std::string scene, mesh, camera, pose, out, stats, inverse, normals = "smooth", mode = "exact", chart = "auto", cache;
     int grid_step = 16;
-    double tolerance_um = 1.0;
+    double tolerance_um = 1.0, texel_mm = 0.05;
     bool no_cache = false;
     MeshOptions mesh_opt;
     ContactOptions contact;
@@ -87,6 +88,8 @@ Run add_map(CLI::App& app) {
   sub->add_flag("--no-cache", o->no_cache, "Neither read nor write the map cache");
   sub->add_option("--out", o->out, "Output MAP.npy: float32 H x W x 3 skin points (part frame, mm), NaN where invalid");
   sub->add_option("--stats", o->stats, "Output STATS.json: coverage, invalid pixels by reason, fast path, timings");
+  sub->add_option("--inverse", o->inverse, "Output INV.npy: the inverse map for cv::remap, float32 T_h x T_w x 2 camera pixels per chart texel, NaN where invalid");
+  sub->add_option("--texel-mm", o->texel_mm, "Texel size of the inverse map on the chart, mm")->capture_default_str();
 
   return [o, sub]() {
     if (!o->scene.empty()) {
@@ -116,8 +119,10 @@ Run add_map(CLI::App& app) {
       take("--tolerance-um", o->tolerance_um, sc.tolerance_um);
       take("--out", o->out, sc.out_map);
       take("--stats", o->stats, sc.out_stats);
+      take("--inverse", o->inverse, sc.out_inverse);
+      take("--texel-mm", o->texel_mm, sc.texel_mm);
       // The scene's output folders are created (nothing is written into them yet).
-      for (const auto& out : {sc.out_map, sc.out_stats})
+      for (const auto& out : {sc.out_map, sc.out_stats, sc.out_inverse})
         if (out && !std::filesystem::path(*out).parent_path().empty())
           std::filesystem::create_directories(std::filesystem::path(*out).parent_path());
       auto member = [&](const std::string& key, const std::string& v, std::initializer_list<const char*> ok) {
@@ -159,7 +164,11 @@ Run add_map(CLI::App& app) {
     if (!(std::isfinite(opt.tolerance_um) && opt.tolerance_um > 0))
       throw InputError("", "--tolerance-um", "must be a positive number of micrometres");
     std::optional<Chart> chart;
-    if (o->chart != "none" && opt.mode != MapOptions::Mode::exact) {
+    if (!o->inverse.empty() && o->chart == "none")
+      throw InputError("", "--inverse", "needs a chart of the contact surface", "drop --chart none");
+    if (!(std::isfinite(o->texel_mm) && o->texel_mm > 0))
+      throw InputError("", "--texel-mm", "must be a positive length in mm");
+    if (o->chart != "none" && (opt.mode != MapOptions::Mode::exact || !o->inverse.empty())) {
       ChartOptions copt;
       copt.method = parse_chart_method(o->chart);
       try {
@@ -176,7 +185,7 @@ Run add_map(CLI::App& app) {
     const std::filesystem::path cache_dir = o->no_cache ? std::filesystem::path() : o->cache.empty() ? default_cache_dir() : std::filesystem::path(o->cache);
     bool hit = false;
     // Output folders are checked before the work, so a bad path fails fast and leaves nothing.
-    for (const std::string& out : {o->out, o->stats})
+    for (const std::string& out : {o->out, o->stats, o->inverse})
       if (!out.empty()) {
         const auto parent = std::filesystem::path(out).parent_path();
         if (!parent.empty() && !std::filesystem::is_directory(parent))
@@ -197,14 +206,38 @@ Run add_map(CLI::App& app) {
                        "check the pose, the camera model and the contact surface");
     const std::string cache = cache_dir.empty() ? "off" : hit ? "hit" : "miss";
 
-    const nlohmann::json stats = stats_json(map, o->mesh, o->camera, opt, cache);
+    nlohmann::json stats = stats_json(map, o->mesh, o->camera, opt, cache);
+    std::optional<InverseMap> inverse;
+    if (!o->inverse.empty()) {
+      if (!chart)
+        throw InputError(o->mesh, "contact surface", "cannot be charted, so no inverse map can be made",
+                         "the contact surface must be a topological disk per component");
+      InverseMapOptions iopt;
+      iopt.texel_mm = o->texel_mm;
+      inverse = compute_inverse_map(map, iopt, &contact);
+      const InverseMap& inv = *inverse;
+      stats["inverse"] = {{"width", inv.width},
+                          {"height", inv.height},
+                          {"texel_mm", inv.texel_mm},
+                          {"uv_origin_mm", {inv.uv_origin.x(), inv.uv_origin.y()}},
+                          {"texels_valid", inv.error.texels_valid},
+                          {"round_trip", {{"max_uv_um", inv.error.max_uv_um}, {"max_px", inv.error.max_px}, {"p99_px", inv.error.p99_px}}},
+                          {"ms", inv.raster_ms + inv.error_ms}};
+    }
     // Both outputs are rendered before either is written, so a failure leaves neither.
-    write_skin_points_npy(map, o->out);
+    // All outputs or none: a failure removes what this run already wrote.
+    std::vector<std::string> written;
     try {
+      write_skin_points_npy(map, o->out);
+      written.push_back(o->out);
+      if (inverse) {
+        write_inverse_map_npy(*inverse, o->inverse);
+        written.push_back(o->inverse);
+      }
       if (!o->stats.empty()) write_file_atomically(o->stats, stats.dump(2) + "\n");
     } catch (...) {
       std::error_code ignored;
-      std::filesystem::remove(o->out, ignored);  // both outputs or neither
+      for (const auto& w : written) std::filesystem::remove(w, ignored);
       throw;
     }
     std::cout << "map " << map.width << " x " << map.height << ": " << map.stats.by_status[0] << " valid pixels ("
@@ -214,7 +247,10 @@ Run add_map(CLI::App& app) {
     for (int k = 1; k < kPixelStatusCount; ++k)
       if (map.stats.by_status[k] > 0)
         std::cout << "  " << to_string(static_cast<PixelStatus>(k)) << ": " << map.stats.by_status[k] << "\n";
-    std::cout << "wrote " << o->out << (o->stats.empty() ? "" : " and " + o->stats) << "\n";
+    if (inverse)
+      std::cout << "inverse map " << inverse->width << " x " << inverse->height << " texels of " << inverse->texel_mm
+                << " mm, " << inverse->error.texels_valid << " valid; round trip max " << inverse->error.max_px << " px\n";
+    std::cout << "wrote " << o->out << (inverse ? ", " + o->inverse : "") << (o->stats.empty() ? "" : ", " + o->stats) << "\n";
     return 0;
   };
 }

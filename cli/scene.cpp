@@ -102,7 +102,9 @@ SceneFile read_scene(const std::filesystem::path& file) {
     s.tolerance_um = r.get<double>(m, "tolerance_um", "map.tolerance_um", "a number of micrometres");
   }
   if (const YAML::Node o = root["outputs"]) {
-    r.only_keys(o, "outputs", {"map", "stats"});
+    r.only_keys(o, "outputs", {"map", "stats", "inverse", "texel_mm"});
+    s.out_inverse = r.path(o, "inverse", "outputs.inverse");
+    s.texel_mm = r.get<double>(o, "texel_mm", "outputs.texel_mm", "a length in mm");
     s.out_map = r.path(o, "map", "outputs.map");
     s.out_stats = r.path(o, "stats", "outputs.stats");
   }

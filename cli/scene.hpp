@@ -12,7 +12,7 @@
 //   camera: camera.cameramodel
 //   pose: pose.json              # optional; default: the cameramodel's extrinsics
 //   map: {normals: smooth, mode: adaptive, grid_step: 16, tolerance_um: 1.0, chart: auto}
-//   outputs: {map: out/map.npy, stats: out/map-stats.json}
+//   outputs: {map: out/map.npy, stats: out/map-stats.json, inverse: out/inverse.npy, texel_mm: 0.05}
 #include <filesystem>
 #include <optional>
 #include <string>
@@ -30,7 +30,8 @@ struct SceneFile {
   std::optional<std::string> normals, mode, chart;
   std::optional<int> grid_step;
   std::optional<double> tolerance_um;
-  std::optional<std::string> out_map, out_stats;
+  std::optional<std::string> out_map, out_stats, out_inverse;
+  std::optional<double> texel_mm;
 };
 
 /// Reads and checks a scene file; paths come back resolved against its folder.

@@ -4,6 +4,7 @@
 #include <functional>
 #include <map>
 #include <numbers>
+#include <random>
 #include <stdexcept>
 
 namespace clearfit::shapes {
@@ -206,6 +207,39 @@ Mesh spherical_shell(double r_in, double r_out, double cap_deg, int n_rings, int
             return Vec3(std::cos(cap) * std::cos(s), std::cos(cap) * std::sin(s), -std::sin(cap));
           }, "side");
   return b.finish("shapes::spherical_shell");
+}
+
+Mesh bump_plate(double sx, double sy, double thickness, int n, int bumps, double bump_height, unsigned seed) {
+  require(sx > 0 && sy > 0 && thickness > 0 && n >= 1 && bumps >= 0 && bump_height >= 0 && std::isfinite(bump_height),
+          "bump_plate needs positive sizes, n >= 1, bumps >= 0, finite bump_height >= 0");
+  struct Bump {
+    double cx, cy, a, inv2s2;
+  };
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  std::vector<Bump> field;
+  for (int k = 0; k < bumps; ++k) {
+    const double cx = (unit(rng) - 0.5) * sx, cy = (unit(rng) - 0.5) * sy;
+    const double a = (0.4 + 0.6 * unit(rng)) * bump_height;
+    const double s = (0.08 + 0.08 * unit(rng)) * std::min(sx, sy);
+    field.push_back({cx, cy, a, 1.0 / (2 * s * s)});
+  }
+  auto top = [&](double x, double y) {
+    double z = thickness;
+    for (const Bump& b : field) z += b.a * std::exp(-((x - b.cx) * (x - b.cx) + (y - b.cy) * (y - b.cy)) * b.inv2s2);
+    return z;
+  };
+  auto x = [&](int i) { return lerp(-sx / 2, sx / 2, i, n); };
+  auto y = [&](int j) { return lerp(-sy / 2, sy / 2, j, n); };
+  Builder b;
+  b.patch(n, n, [&](int i, int j) { return Vec3(x(i), y(j), 0.0); }, [](const Vec3&) { return Vec3(0, 0, -1); }, "contact");
+  b.patch(n, n, [&](int i, int j) { return Vec3(x(i), y(j), top(x(i), y(j))); }, [](const Vec3&) { return Vec3(0, 0, 1); }, "outer");
+  auto wall = [&](double xx, double yy, int k) { return Vec3(xx, yy, k ? top(xx, yy) : 0.0); };
+  b.patch(n, 1, [&](int i, int k) { return wall(x(i), y(0), k); }, [](const Vec3&) { return Vec3(0, -1, 0); }, "side");
+  b.patch(n, 1, [&](int i, int k) { return wall(x(i), y(n), k); }, [](const Vec3&) { return Vec3(0, 1, 0); }, "side");
+  b.patch(n, 1, [&](int j, int k) { return wall(x(0), y(j), k); }, [](const Vec3&) { return Vec3(-1, 0, 0); }, "side");
+  b.patch(n, 1, [&](int j, int k) { return wall(x(n), y(j), k); }, [](const Vec3&) { return Vec3(1, 0, 0); }, "side");
+  return b.finish("shapes::bump_plate");
 }
 
 }  // namespace clearfit::shapes

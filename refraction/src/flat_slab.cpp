@@ -56,14 +56,27 @@ std::unique_ptr<FlatSlab> FlatSlab::detect(const Mesh& mesh, const ContactSurfac
   if (outer.empty()) return nullptr;
   const double thickness = d_outer + dc;  // contact: nc·x = dc; outer: -nc·x = d_outer
   if (!(thickness > tol)) return nullptr;
-  // Convexity: every vertex on the inner side of every face's plane.
+  // Convexity: every vertex on the inner side of every face's plane. Faces
+  // are first merged into their distinct planes (a slab has few), so the
+  // check costs vertices × planes, not vertices × faces.
+  std::vector<std::pair<Vec3, double>> planes;
   for (int f = 0; f < mesh.num_faces(); ++f) {
     const Vec3 n = mesh.face_normal(f);
     if (n.isZero()) continue;
     const double d = n.dot(mesh.corner(f, 0));
+    bool known = false;
+    for (const auto& [pn, pd] : planes)
+      if (pn.dot(n) >= cos_tol && std::abs(pd - d) <= tol) {
+        known = true;
+        break;
+      }
+    if (known) continue;
+    if (planes.size() >= 1024) return nullptr;  // a slab has a handful of planes
+    planes.emplace_back(n, d);
+  }
+  for (const auto& [n, d] : planes)
     for (const Vec3& v : mesh.vertices)
       if (n.dot(v) - d > tol) return nullptr;
-  }
   auto slab = std::unique_ptr<FlatSlab>(new FlatSlab());
   slab->mesh_ = &mesh;
   slab->thickness_ = thickness;

@@ -1,5 +1,6 @@
 #include "chart_locator.hpp"
 #include "flat_slab.hpp"
+#include "npy.hpp"
 
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/error.hpp>
@@ -12,7 +13,6 @@
 #include <map>
 #include <memory>
 #include <mutex>
-#include <sstream>
 
 namespace clearfit {
 
@@ -532,25 +532,12 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
 }
 
 void write_skin_points_npy(const RefractionMap& map, const std::filesystem::path& path) {
-  std::ostringstream dict;
-  dict << "{'descr': '<f4', 'fortran_order': False, 'shape': (" << map.height << ", " << map.width << ", 3), }";
-  std::string header = dict.str();
-  const std::size_t unpadded = 10 + header.size() + 1;  // magic(6) + version(2) + length(2) + '\n'
-  header.append((64 - unpadded % 64) % 64, ' ');
-  header.push_back('\n');
-  write_file_atomically(path, [&](std::ostream& out) {
-    out.write("\x93NUMPY\x01\x00", 8);
-    const auto len = static_cast<std::uint16_t>(header.size());
-    const char le[2] = {static_cast<char>(len & 0xff), static_cast<char>(len >> 8)};
-    out.write(le, 2);
-    out.write(header.data(), static_cast<std::streamsize>(header.size()));
-    std::vector<float> row(static_cast<std::size_t>(map.width) * 3);
-    for (int y = 0; y < map.height; ++y) {
-      for (int x = 0; x < map.width; ++x)
-        for (int k = 0; k < 3; ++k) row[3 * x + k] = static_cast<float>(map.skin_point[map.index(x, y)][k]);
-      out.write(reinterpret_cast<const char*>(row.data()), static_cast<std::streamsize>(row.size() * sizeof(float)));
-    }
-  });
+  npy::write_float32(path, {static_cast<std::size_t>(map.height), static_cast<std::size_t>(map.width), 3},
+                     [&](std::size_t y, float* out) {
+                       for (int x = 0; x < map.width; ++x)
+                         for (int k = 0; k < 3; ++k)
+                           out[3 * x + k] = static_cast<float>(map.skin_point[map.index(x, static_cast<int>(y))][k]);
+                     });
 }
 
 }  // namespace clearfit

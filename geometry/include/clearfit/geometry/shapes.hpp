@@ -34,4 +34,14 @@ Mesh cylindrical_shell(double r_in, double r_out, double span_deg, double width,
 /// rings and `n_around` segments.
 Mesh spherical_shell(double r_in, double r_out, double cap_deg, int n_rings, int n_around);
 
+/// Freeform plate (a bump field): x in [-sx/2, sx/2], y in [-sy/2, sy/2], flat
+/// bottom z = 0 ("contact", faces -z), top ("outer") the height field
+/// z = thickness + sum_k a_k exp(-|(x, y) - c_k|^2 / (2 s_k^2)) with `bumps`
+/// Gaussian bumps drawn from std::mt19937(seed): centres c_k uniform over the
+/// plate, heights a_k uniform in [0.4, 1] * bump_height (bump_height >= 0; all
+/// bumps rise, so the plate is at least `thickness` thick), widths s_k uniform
+/// in [0.08, 0.16] * min(sx, sy). Walls "side". `n` quads per edge on the big
+/// faces (4n^2 + 8n triangles). Same seed, same plate.
+Mesh bump_plate(double sx, double sy, double thickness, int n, int bumps, double bump_height, unsigned seed);
+
 }  // namespace clearfit::shapes

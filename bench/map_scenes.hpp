@@ -1,0 +1,163 @@
+#pragma once
+// Scenes, the floor and the error figures shared by `clearfit bench map`
+// (cli/bench.cpp) and the Google Benchmark program bench/map_bench.cpp.
+//
+// A scene: one of the analytic parts (slab, band, dome, bump field) with its
+// contact group, an Embree ray index, and an OPENCV8 camera (f = 0.9 width,
+// mild distortion) above it on +z looking down, at the distance where the
+// part fills 90 % of the image in its tighter direction.
+// The floor: the two batched RayIndex::intersect calls an exact map cannot
+// avoid, over the pixels the exact map traced: the camera rays, then the
+// refracted rays from the entry points (built outside the timer).
+#include <clearfit/camera/camera_model.hpp>
+#include <clearfit/geometry/contact.hpp>
+#include <clearfit/geometry/ray_index.hpp>
+#include <clearfit/geometry/shapes.hpp>
+#include <clearfit/refraction/map.hpp>
+#include <clearfit/refraction/optics.hpp>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <memory>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace clearfit::bench {
+
+inline const std::vector<std::string>& shape_names() {
+  static const std::vector<std::string> names = {"slab", "band", "dome", "bumps"};
+  return names;
+}
+
+struct Scene {
+  std::string name;
+  Mesh mesh;
+  ContactSurface contact;
+  std::unique_ptr<RayIndex> index;
+  double build_ms = 0;  ///< mesh + ray index
+  TraceScene trace() const { return {&mesh, &contact, index.get(), nullptr}; }
+};
+
+/// The benchmark parts (mm), 40k-130k triangles. Throws std::invalid_argument
+/// for an unknown name.
+inline std::unique_ptr<Scene> make_scene(const std::string& name) {
+  const auto t0 = std::chrono::steady_clock::now();
+  auto s = std::make_unique<Scene>();
+  s->name = name;
+  if (name == "slab") s->mesh = shapes::slab(60, 40, 3, 100);
+  else if (name == "band") s->mesh = shapes::cylindrical_shell(32, 34.5, 100, 40, 400, 60);
+  else if (name == "dome") s->mesh = shapes::spherical_shell(25, 27.5, 40, 64, 512);
+  else if (name == "bumps") s->mesh = shapes::bump_plate(60, 40, 3, 140, 12, 2.0, 7);
+  else throw std::invalid_argument("bench: unknown shape '" + name + "' (slab, band, dome, bumps)");
+  ContactSelector sel;
+  sel.group = "contact";
+  s->contact = select_contact(s->mesh, sel);
+  s->index = make_ray_index(s->mesh, RayBackend::embree);
+  s->build_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  return s;
+}
+
+/// OPENCV8 camera, f = 0.9 width, principal point at the centre, mild barrel
+/// distortion (about 2 px at the corners of a 640x480 image).
+inline CameraModel make_camera(int width, int height) {
+  CameraModel c;
+  c.lensmodel = "LENSMODEL_OPENCV8";
+  const double f = 0.9 * width;
+  c.intrinsics = {f, f, (width - 1) / 2.0, (height - 1) / 2.0, -0.04, 0.01, 2e-4, -1e-4, 0.0, 0.005, 0.0, 0.0};
+  c.width = width;
+  c.height = height;
+  return c;
+}
+
+/// Camera on the +z axis looking down (cam_from_part rotation diag(1, -1, -1)),
+/// as close as keeps every vertex within 90 % of the image (pinhole estimate).
+inline Rigid3 frame_part(const Mesh& mesh, const CameraModel& camera) {
+  const double f = camera.intrinsics[0];
+  const double hx = 0.45 * camera.width / f, hy = 0.45 * camera.height / f;  // tan of the usable half angles
+  double zc = -1e300;
+  for (const Vec3& v : mesh.vertices) zc = std::max({zc, v.z() + std::abs(v.x()) / hx, v.z() + std::abs(v.y()) / hy});
+  Rigid3 cam_from_part;
+  cam_from_part.rotation = Eigen::Vector3d(1, -1, -1).asDiagonal();
+  cam_from_part.translation = Vec3(0, 0, zc);
+  return cam_from_part;
+}
+
+struct Floor {
+  double ms = 0, cast1_ms = 0, cast2_ms = 0;  ///< best of the repeats (both casts timed in the same repeat)
+  long long rays1 = 0, rays2 = 0;
+};
+
+/// The floor of the exact map `exact` of this scene and camera: the pixels it
+/// traced (status other than `outside`) cast once from the camera, then their
+/// refracted rays (front-facing non-contact first hits) cast again.
+/// `rays` is unproject_image(camera) (not timed).
+inline Floor measure_floor(const Scene& scene, const RayGrid& rays, const Rigid3& cam_from_part,
+                           const RefractionMap& exact, const optics::Indices& n, int repeat) {
+  const Rigid3 part_from_cam = cam_from_part.inverse();
+  std::vector<Ray> first;
+  for (std::size_t p = 0; p < exact.status.size(); ++p)
+    if (exact.status[p] != PixelStatus::outside && rays.rays[p].allFinite())
+      first.push_back({part_from_cam.translation, part_from_cam.rotation * rays.rays[p]});
+  std::vector<RayHit> hit1(first.size());
+  scene.index->intersect(first, hit1);
+  std::vector<Ray> second;
+  for (std::size_t i = 0; i < first.size(); ++i) {
+    const RayHit& h = hit1[i];
+    if (!h || !h.front_facing || scene.contact.is_contact[h.face]) continue;
+    Vec3 nrm = h.shading_normal;
+    const Vec3 d = first[i].direction.normalized();
+    if (nrm.dot(d) >= 0) nrm = h.geometric_normal;
+    if (auto t = optics::refract(d, nrm, n.n_medium, n.n_part)) second.push_back({h.point, *t, 1e-7});
+  }
+  std::vector<RayHit> hit2(second.size());
+  Floor fl;
+  fl.rays1 = static_cast<long long>(first.size());
+  fl.rays2 = static_cast<long long>(second.size());
+  fl.ms = 1e300;
+  using Clock = std::chrono::steady_clock;
+  for (int r = 0; r < std::max(1, repeat); ++r) {
+    const auto t0 = Clock::now();
+    scene.index->intersect(first, hit1);
+    const auto t1 = Clock::now();
+    scene.index->intersect(second, hit2);
+    const auto t2 = Clock::now();
+    const double a = std::chrono::duration<double, std::milli>(t1 - t0).count();
+    const double b = std::chrono::duration<double, std::milli>(t2 - t1).count();
+    if (a + b < fl.ms) fl = {a + b, a, b, fl.rays1, fl.rays2};
+  }
+  return fl;
+}
+
+struct MapError {
+  long long compared = 0;        ///< pixels valid in both maps
+  long long validity_diff = 0;   ///< pixels valid in exactly one of them
+  double median_um = 0, p99_um = 0, max_um = 0;
+};
+
+/// Per-pixel |skin_point - exact skin_point| (µm) over the pixels valid in
+/// both maps; nearest-rank percentiles.
+inline MapError compare_maps(const RefractionMap& map, const RefractionMap& exact) {
+  if (map.width != exact.width || map.height != exact.height) throw std::invalid_argument("bench: map sizes differ");
+  MapError e;
+  std::vector<double> d;
+  for (std::size_t p = 0; p < map.status.size(); ++p) {
+    const bool a = map.status[p] == PixelStatus::valid, b = exact.status[p] == PixelStatus::valid;
+    if (a && b) d.push_back((map.skin_point[p] - exact.skin_point[p]).norm() * 1e3);
+    else if (a != b) ++e.validity_diff;
+  }
+  e.compared = static_cast<long long>(d.size());
+  if (d.empty()) return e;
+  auto rank = [&](double q) {
+    const std::size_t k = std::min(d.size() - 1, static_cast<std::size_t>(std::ceil(q * d.size())) - (q > 0 ? 1 : 0));
+    std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(k), d.end());
+    return d[k];
+  };
+  e.median_um = rank(0.5);
+  e.p99_um = rank(0.99);
+  e.max_um = *std::max_element(d.begin(), d.end());
+  return e;
+}
+
+}  // namespace clearfit::bench
