@@ -59,7 +59,7 @@ nlohmann::json stats_json(const RefractionMap& map, const std::string& mesh, con
 Run add_map(CLI::App& app) {
   struct Opts {
     std::string scene, mesh, camera, pose, out, stats, inverse, normals = "smooth", mode = "exact", chart = "auto", cache;
-    int grid_step = 16;
+    int grid_step = 32;
     double tolerance_um = 1.0, texel_mm = 0.05;
     bool no_cache = false;
     MeshOptions mesh_opt;

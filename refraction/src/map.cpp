@@ -8,6 +8,7 @@
 
 #include <tbb/parallel_for.h>
 
+#include <atomic>
 #include <chrono>
 #include <cmath>
 #include <map>
@@ -357,10 +358,12 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
   const Rigid3 part_from_cam = cam_from_part.inverse();
   std::vector<char> traced(N, 0);
   // Exact trace of the listed pixels that are not traced yet.
-  auto trace_pixels = [&](std::vector<std::uint32_t> pixels) {
+  auto trace_pixels = [&](std::vector<std::uint32_t> pixels, bool sorted_unique = false) {
     std::erase_if(pixels, [&](std::uint32_t p) { return traced[p] != 0; });
-    std::sort(pixels.begin(), pixels.end());
-    pixels.erase(std::unique(pixels.begin(), pixels.end()), pixels.end());
+    if (!sorted_unique) {
+      std::sort(pixels.begin(), pixels.end());
+      pixels.erase(std::unique(pixels.begin(), pixels.end()), pixels.end());
+    }
     std::vector<Vec3> dirs(pixels.size());
     const auto tu = Clock::now();
     rays->get(pixels, dirs);
@@ -372,10 +375,10 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
     });
     std::vector<SkinSample> out(pixels.size());
     tracer.trace(first, out);
-    for (std::size_t i = 0; i < pixels.size(); ++i) {
+    tbb::parallel_for(std::size_t(0), pixels.size(), [&](std::size_t i) {  // distinct pixels: no races
       store(map, scene, pixels[i], out[i]);
       traced[pixels[i]] = 1;
-    }
+    });
     st.traced += static_cast<long long>(pixels.size());
   };
 
@@ -385,9 +388,15 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
       all.reserve(static_cast<std::size_t>(box.x1 - box.x0 + 1) * (box.y1 - box.y0 + 1));
       for (int y = box.y0; y <= box.y1; ++y)
         for (int x = box.x0; x <= box.x1; ++x) all.push_back(static_cast<std::uint32_t>(map.index(x, y)));
-      trace_pixels(std::move(all));
+      trace_pixels(std::move(all), true);
     } else {
-      // Quadtree over pixel cells: trace corners, accept (interpolate) or split.
+      // Quadtree over pixel cells with up to nine nodes each (corners, edge
+      // midpoints, centre), all traced exactly; the interior is filled by
+      // tensor-product quadratic (Lagrange) interpolation of the nodes. A
+      // check pixel at a quarter of the cell is traced too; adaptive splits
+      // the cell into its quadrants (whose corners are nodes already) unless
+      // the interpolation is within tolerance there. Each level's nodes and
+      // checks are traced in one batch.
       const bool adaptive = options.mode == MapOptions::Mode::adaptive;
       const double tol_mm = options.tolerance_um * 1e-3;
       const std::vector<int>& component = scene.contact->component;
@@ -399,11 +408,11 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
       auto idx = [&](int x, int y) { return static_cast<std::uint32_t>(map.index(x, y)); };
       double worst = 0;
       std::vector<std::uint32_t> retrace;
-      // Interpolation inside a cell from its four (valid) corners. With a
-      // chart: chart coordinates are interpolated (smooth: no surface sag) and
-      // put back on the mesh by point location, so the point lies on the
-      // surface. Without one: the skin points themselves, with the face of the
-      // nearest corner. nullopt: the location fell outside the chart.
+      // The interpolant: with a chart, chart coordinates are interpolated
+      // (smooth: no surface sag) and put back on the mesh by point location,
+      // so the point lies on the surface. Without one: the skin points
+      // themselves, with the face of the heaviest node. nullopt: the location
+      // fell outside the chart.
       std::optional<refraction_detail::ChartLocator> locator;
       if (scene.chart && !scene.chart->uv.empty()) locator.emplace(mesh, *scene.chart);
       struct Interp {
@@ -412,21 +421,55 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
         std::array<double, 3> bary;
         Vec2 uv;
       };
-      auto interpolate = [&](const std::uint32_t (&q)[4], const std::array<double, 4>& w) -> std::optional<Interp> {
+      struct Nodes {
+        int n = 0;
+        std::uint32_t pixel[9];
+        int ax[3], ay[3], nx = 0, ny = 0;
+      };
+      auto nodes_of = [&](const Cell& c) {
+        Nodes q;
+        auto axis = [](int a0, int a1, int* at) {
+          if (a1 == a0) return at[0] = a0, 1;
+          if (a1 - a0 == 1) return at[0] = a0, at[1] = a1, 2;
+          return at[0] = a0, at[1] = (a0 + a1) / 2, at[2] = a1, 3;
+        };
+        q.nx = axis(c.x0, c.x1, q.ax);
+        q.ny = axis(c.y0, c.y1, q.ay);
+        for (int j = 0; j < q.ny; ++j)
+          for (int i = 0; i < q.nx; ++i) q.pixel[q.n++] = idx(q.ax[i], q.ay[j]);
+        return q;
+      };
+      // Lagrange weights of the nodes at pixel (x, y).
+      auto weights = [](const Nodes& q, int x, int y) {
+        std::array<double, 9> w{};
+        double wx[3], wy[3];
+        for (int i = 0; i < q.nx; ++i) {
+          wx[i] = 1;
+          for (int k = 0; k < q.nx; ++k)
+            if (k != i) wx[i] *= double(x - q.ax[k]) / (q.ax[i] - q.ax[k]);
+        }
+        for (int j = 0; j < q.ny; ++j) {
+          wy[j] = 1;
+          for (int k = 0; k < q.ny; ++k)
+            if (k != j) wy[j] *= double(y - q.ay[k]) / (q.ay[j] - q.ay[k]);
+        }
+        for (int j = 0; j < q.ny; ++j)
+          for (int i = 0; i < q.nx; ++i) w[j * q.nx + i] = wx[i] * wy[j];
+        return w;
+      };
+      auto interpolate = [&](const Nodes& q, const std::array<double, 9>& w) -> std::optional<Interp> {
+        int heaviest = 0;
+        for (int k = 0; k < q.n; ++k)
+          if (w[k] > w[heaviest]) heaviest = k;
         if (locator) {
           Vec2 uv = Vec2::Zero();
-          for (int k = 0; k < 4; ++k) uv += w[k] * map.chart_uv[q[k]].cast<double>();
+          for (int k = 0; k < q.n; ++k) uv += w[k] * map.chart_uv[q.pixel[k]].cast<double>();
           const auto hit = locator->locate(uv);
           if (!hit) return std::nullopt;
           return Interp{hit->point, hit->face, hit->bary, uv};
         }
-        Interp r{Vec3::Zero(), -1, {}, Vec2::Constant(std::numeric_limits<double>::quiet_NaN())};
-        int nearest = 0;
-        for (int k = 0; k < 4; ++k) {
-          r.point += w[k] * map.skin_point[q[k]];
-          if (w[k] > w[nearest]) nearest = k;
-        }
-        r.face = map.face[q[nearest]];
+        Interp r{Vec3::Zero(), map.face[q.pixel[heaviest]], {}, Vec2::Constant(std::numeric_limits<double>::quiet_NaN())};
+        for (int k = 0; k < q.n; ++k) r.point += w[k] * map.skin_point[q.pixel[k]];
         const Vec3 a = mesh.corner(r.face, 0), e1 = mesh.corner(r.face, 1) - a, e2 = mesh.corner(r.face, 2) - a;
         const Vec3 d = r.point - a;
         const double d11 = e1.dot(e1), d12 = e1.dot(e2), d22 = e2.dot(e2), det = d11 * d22 - d12 * d12;
@@ -435,66 +478,88 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
         r.bary = {1 - b1 - b2, b1, b2};
         return r;
       };
+      auto done = [](const Cell& c) { return c.x1 - c.x0 <= 2 && c.y1 - c.y0 <= 2; };  // every pixel is a node
+      // Two check pixels, at a quarter and three quarters of the cell's diagonal.
+      auto check_xy = [](const Cell& c, int k) {
+        const int dx = (c.x1 - c.x0) / 4, dy = (c.y1 - c.y0) / 4;
+        return k == 0 ? std::pair{c.x0 + dx, c.y0 + dy} : std::pair{c.x1 - dx, c.y1 - dy};
+      };
       while (!cells.empty()) {
-        std::vector<std::uint32_t> corners;
-        for (const Cell& c : cells)
-          for (std::uint32_t p : {idx(c.x0, c.y0), idx(c.x1, c.y0), idx(c.x0, c.y1), idx(c.x1, c.y1)}) corners.push_back(p);
-        trace_pixels(std::move(corners));
-        // Every cell with interior pixels gets its centre traced as a check.
-        std::vector<std::uint32_t> centres;
-        for (const Cell& c : cells)
-          if (c.x1 - c.x0 > 1 || c.y1 - c.y0 > 1) centres.push_back(idx((c.x0 + c.x1) / 2, (c.y0 + c.y1) / 2));
-        trace_pixels(centres);
-        std::vector<Cell> next;
+        std::vector<std::uint32_t> batch;
         for (const Cell& c : cells) {
-          if (c.x1 - c.x0 <= 1 && c.y1 - c.y0 <= 1) continue;  // every pixel is a corner: done
-          const std::uint32_t q[4] = {idx(c.x0, c.y0), idx(c.x1, c.y0), idx(c.x0, c.y1), idx(c.x1, c.y1)};
-          const int xc = (c.x0 + c.x1) / 2, yc = (c.y0 + c.y1) / 2;
-          const std::uint32_t centre = idx(xc, yc);
-          auto weights = [&](int x, int y) {
-            const double wx = c.x1 > c.x0 ? double(x - c.x0) / (c.x1 - c.x0) : 0;
-            const double wy = c.y1 > c.y0 ? double(y - c.y0) / (c.y1 - c.y0) : 0;
-            return std::array<double, 4>{(1 - wx) * (1 - wy), wx * (1 - wy), (1 - wx) * wy, wx * wy};
-          };
-          bool accept = false, all_valid = true, same_invalid = true;
-          for (std::uint32_t p : q) {
-            all_valid &= map.status[p] == PixelStatus::valid;
-            same_invalid &= map.status[p] != PixelStatus::valid && map.status[p] == map.status[q[0]];
+          const Nodes q = nodes_of(c);
+          batch.insert(batch.end(), q.pixel, q.pixel + q.n);
+          if (!done(c))
+            for (int k = 0; k < 2; ++k) batch.push_back(idx(check_xy(c, k).first, check_xy(c, k).second));
+        }
+        trace_pixels(std::move(batch));
+        // Decide every cell (in parallel), then fill the accepted ones. A pixel
+        // belongs to the cell with x0 <= x < x1 and y0 <= y < y1 (or on the
+        // box's last column/row), so parallel fills never touch the same pixel.
+        std::vector<char> decision(cells.size(), 0);  // 0 done, 1 accept valid, 2 accept invalid, 3 split
+        std::vector<double> cell_err(cells.size(), 0);
+        tbb::parallel_for(std::size_t(0), cells.size(), [&](std::size_t ci) {
+          const Cell& c = cells[ci];
+          if (done(c)) return;
+          const Nodes q = nodes_of(c);
+          const std::uint32_t checks[2] = {idx(check_xy(c, 0).first, check_xy(c, 0).second),
+                                           idx(check_xy(c, 1).first, check_xy(c, 1).second)};
+          const PixelStatus first = map.status[q.pixel[0]];
+          bool all_valid = true, same_invalid = true;
+          for (int k = 0; k < q.n; ++k) {
+            const PixelStatus st_k = map.status[q.pixel[k]];
+            all_valid &= st_k == PixelStatus::valid;
+            same_invalid &= st_k != PixelStatus::valid && st_k == first;
           }
           if (all_valid) {
-            const int comp = component[map.face[q[0]]];
-            for (std::uint32_t p : q) all_valid &= component[map.face[p]] == comp;
+            const int comp = component[map.face[q.pixel[0]]];
+            for (int k = 0; k < q.n; ++k) all_valid &= component[map.face[q.pixel[k]]] == comp;
           }
-          if (all_valid && map.status[centre] == PixelStatus::valid) {
-            const auto guess = interpolate(q, weights(xc, yc));
-            const double err = guess ? (guess->point - map.skin_point[centre]).norm() : 1e300;
-            accept = guess && (!adaptive || err <= tol_mm);
-            if (accept) worst = std::max(worst, err);
-          } else if (same_invalid && map.status[centre] == map.status[q[0]]) {
-            accept = true;  // uniformly invalid for the same reason
+          decision[ci] = 3;
+          if (all_valid && map.status[checks[0]] == PixelStatus::valid && map.status[checks[1]] == PixelStatus::valid) {
+            double err = 0;
+            for (int k = 0; k < 2; ++k) {
+              const auto [cx, cy] = check_xy(c, k);
+              const auto guess = interpolate(q, weights(q, cx, cy));
+              err = std::max(err, guess ? (guess->point - map.skin_point[checks[k]]).norm() : 1e300);
+            }
+            if (err < 1e300 && (!adaptive || err <= tol_mm)) decision[ci] = 1, cell_err[ci] = err;
+          } else if (same_invalid && map.status[checks[0]] == first && map.status[checks[1]] == first) {
+            decision[ci] = 2;  // uniformly invalid for the same reason
           }
-          if (!accept) {
-            const int xm = (c.x0 + c.x1) / 2, ym = (c.y0 + c.y1) / 2;
-            const bool sx = c.x1 - c.x0 > 1, sy = c.y1 - c.y0 > 1;
-            if (sx && sy) next.insert(next.end(), {{c.x0, c.y0, xm, ym}, {xm, c.y0, c.x1, ym}, {c.x0, ym, xm, c.y1}, {xm, ym, c.x1, c.y1}});
-            else if (sx) next.insert(next.end(), {{c.x0, c.y0, xm, c.y1}, {xm, c.y0, c.x1, c.y1}});
-            else next.insert(next.end(), {{c.x0, c.y0, c.x1, ym}, {c.x0, ym, c.x1, c.y1}});
-            continue;
-          }
-          // Fill the untraced interior from the corners.
-          for (int y = c.y0; y <= c.y1; ++y)
-            for (int x = c.x0; x <= c.x1; ++x) {
+        });
+        std::vector<Cell> next;
+        for (std::size_t ci = 0; ci < cells.size(); ++ci) {
+          const Cell& c = cells[ci];
+          if (decision[ci] == 1) worst = std::max(worst, cell_err[ci]);
+          if (decision[ci] != 3) continue;
+          const int xm = (c.x0 + c.x1) / 2, ym = (c.y0 + c.y1) / 2;
+          const bool sx = c.x1 - c.x0 > 1, sy = c.y1 - c.y0 > 1;
+          if (sx && sy) next.insert(next.end(), {{c.x0, c.y0, xm, ym}, {xm, c.y0, c.x1, ym}, {c.x0, ym, xm, c.y1}, {xm, ym, c.x1, c.y1}});
+          else if (sx) next.insert(next.end(), {{c.x0, c.y0, xm, c.y1}, {xm, c.y0, c.x1, c.y1}});
+          else next.insert(next.end(), {{c.x0, c.y0, c.x1, ym}, {c.x0, ym, c.x1, c.y1}});
+        }
+        std::atomic<long long> filled{0};
+        tbb::parallel_for(std::size_t(0), cells.size(), [&](std::size_t ci) {
+          if (decision[ci] != 1 && decision[ci] != 2) return;
+          const Cell& c = cells[ci];
+          const Nodes q = nodes_of(c);
+          const PixelStatus first = map.status[q.pixel[0]];
+          const int xe = c.x1 == box.x1 ? c.x1 : c.x1 - 1, ye = c.y1 == box.y1 ? c.y1 : c.y1 - 1;
+          long long count = 0;
+          for (int y = c.y0; y <= ye; ++y)
+            for (int x = c.x0; x <= xe; ++x) {
               const std::uint32_t p = idx(x, y);
               if (traced[p]) continue;
-              if (map.status[q[0]] != PixelStatus::valid) {
+              if (decision[ci] == 2) {
                 traced[p] = 2;
-                map.status[p] = map.status[q[0]];
+                map.status[p] = first;
                 continue;
               }
-              const auto w = weights(x, y);
+              const auto w = weights(q, x, y);
               const auto r = interpolate(q, w);
               if (!r) {
-                retrace.push_back(p);
+                traced[p] = 3;  // traced exactly after this pass
                 continue;
               }
               traced[p] = 2;
@@ -504,17 +569,26 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
               map.bary[p] = Eigen::Vector2f(static_cast<float>(r->bary[1]), static_cast<float>(r->bary[2]));
               map.chart_uv[p] = r->uv.cast<float>();
               float inc = 0, con = 0, T = 0;
-              for (int k = 0; k < 4; ++k) {
+              for (int k = 0; k < q.n; ++k) {
                 const float wk = static_cast<float>(w[k]);
-                inc += wk * map.incidence_deg[q[k]];
-                con += wk * map.contact_deg[q[k]];
-                T += wk * map.transmittance[q[k]];
+                inc += wk * map.incidence_deg[q.pixel[k]];
+                con += wk * map.contact_deg[q.pixel[k]];
+                T += wk * map.transmittance[q.pixel[k]];
               }
               map.incidence_deg[p] = inc;
               map.contact_deg[p] = con;
-              map.transmittance[p] = T;
-              ++st.interpolated;
+              map.transmittance[p] = std::clamp(T, 0.0f, 1.0f);
+              ++count;
             }
+          filled += count;
+        });
+        st.interpolated += filled;
+        for (std::size_t ci = 0; ci < cells.size(); ++ci) {
+          if (decision[ci] != 1) continue;
+          const Cell& c = cells[ci];
+          for (int y = c.y0; y <= c.y1; ++y)
+            for (int x = c.x0; x <= c.x1; ++x)
+              if (traced[idx(x, y)] == 3) traced[idx(x, y)] = 0, retrace.push_back(idx(x, y));
         }
         trace_pixels(std::move(retrace));
         retrace.clear();

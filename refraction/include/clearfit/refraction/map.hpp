@@ -40,15 +40,16 @@ const char* to_string(PixelStatus status);
 struct MapOptions {
   optics::Indices indices;               ///< n_medium (camera side), n_part, n_skin
   enum class Normals { smooth, flat } normals = Normals::smooth;
-  /// exact: every pixel traced. grid: a pixel grid every grid_step px is
-  /// traced, cells whose four corners are valid on one contact component are
-  /// interpolated bilinearly, others split down to single pixels.
-  /// adaptive: like grid, but a cell is interpolated only if its exactly
-  /// traced centre is within tolerance_um of the interpolation; otherwise it
-  /// is split (quadtree), so cells straddling validity boundaries, creases or
-  /// the critical angle end up traced pixel by pixel.
+  /// exact: every pixel traced. grid: cells of grid_step px with nine traced
+  /// nodes (corners, edge midpoints, centre); cells whose nodes are all valid
+  /// on one contact component are filled by quadratic interpolation, others
+  /// split down to single pixels. adaptive: like grid, but a cell is filled
+  /// only if two exactly traced check pixels (at 1/4 and 3/4 of its diagonal)
+  /// are within tolerance_um of the interpolation; otherwise it is split
+  /// (quadtree), so cells straddling validity boundaries, creases or the
+  /// critical angle end up traced pixel by pixel.
   enum class Mode { exact, grid, adaptive } mode = Mode::exact;
-  int grid_step = 16;                    ///< starting cell size, pixels (power of two, 2..256)
+  int grid_step = 32;                    ///< starting cell size, pixels (power of two, 2..256)
   double tolerance_um = 1.0;             ///< adaptive: accepted interpolation error on the skin, µm
   bool fast_paths = true;                ///< straight rays when n_medium == n_part; closed form for a flat slab
   bool cull = true;                      ///< trace only pixels inside the part's projected bound
