@@ -29,7 +29,7 @@ struct Size {
 struct ModeSpec {
   std::string label;  // "exact", "grid:8", "adaptive:1"
   MapOptions::Mode mode = MapOptions::Mode::exact;
-  int step = 16;
+  int step = MapOptions{}.grid_step;
   double tol_um = 1;
 };
 
@@ -83,7 +83,7 @@ std::vector<ModeSpec> parse_modes(const std::string& s) {
       } else if (kind == "adaptive" && !arg.empty()) {
         m.mode = MapOptions::Mode::adaptive;
         m.tol_um = std::stod(arg, &used);
-        m.step = 16;  // the quadtree's starting cell (MapOptions' default)
+        m.step = MapOptions{}.grid_step;  // the quadtree's starting cell (MapOptions' default)
       } else {
         used = std::string::npos;
       }
