@@ -253,6 +253,40 @@ std::uint64_t CameraModel::intrinsics_hash() const {
   return h;
 }
 
+namespace {
+// True if `text` (a Python-literal dict as in .cameramodel files, with #
+// comments) has closed quotes, balanced (), [], {}, and ends with the '}'
+// that closes its first '{'.
+bool balanced_python_literal(const std::string& text) {
+  std::string stack;
+  char quote = 0;
+  bool seen_open = false, closed = false;
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (quote) {
+      if (c == '\\') ++i;
+      else if (c == quote) quote = 0;
+      continue;
+    }
+    if (closed && !std::isspace(static_cast<unsigned char>(c)) && c != '#') return false;
+    if (c == '#') {
+      while (i < text.size() && text[i] != '\n') ++i;
+      continue;
+    }
+    if (c == '\'' || c == '"') quote = c;
+    else if (c == '{' || c == '[' || c == '(') {
+      seen_open |= c == '{';
+      stack.push_back(c == '{' ? '}' : c == '[' ? ']' : ')');
+    } else if (c == '}' || c == ']' || c == ')') {
+      if (stack.empty() || stack.back() != c) return false;
+      stack.pop_back();
+      closed = stack.empty();
+    }
+  }
+  return quote == 0 && seen_open && closed && stack.empty();
+}
+}  // namespace
+
 CameraModel read_cameramodel(const std::filesystem::path& path) {
   const std::string file = path.string();
   std::error_code ec;
@@ -268,6 +302,10 @@ CameraModel read_cameramodel(const std::filesystem::path& path) {
     throw InputError(file, "", "is too large for a .cameramodel file");
   if (text.empty()) throw InputError(file, "", "is empty", "give the path of an mrcal .cameramodel file");
 
+  // mrcal 2.2's parser reads past the end of a truncated text (an unclosed
+  // string or list: a crash under AddressSanitizer). Only well-formed text is
+  // handed to it: quotes closed, brackets balanced, ending with the closing '}'.
+  if (!balanced_python_literal(text)) throw explain_parse_failure(file, text);
   std::unique_ptr<mrcal_cameramodel_t, ModelDeleter> m(
       mrcal_read_cameramodel_string(text.data(), static_cast<int>(text.size())));
   if (!m) throw explain_parse_failure(file, text);
