@@ -54,7 +54,7 @@ case "${1:-}" in
     ./build/cli/clearfit mesh-info samples/wristband/wristband.obj --contact-group contact
     echo "== clearfit map: the wristband's refraction map (samples/wristband/scene.yaml)"
     ./build/cli/clearfit map --scene samples/wristband/scene.yaml
-    echo "== outputs: samples/wristband/out/map.npy and samples/wristband/out/map-stats.json"
+    echo "== outputs in samples/wristband/out/: map.npy, inverse.npy, map-stats.json"
     ;;
   test)
     install_deps
