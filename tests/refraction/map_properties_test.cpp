@@ -5,6 +5,8 @@
 #include <clearfit/refraction/map.hpp>
 #include <gtest/gtest.h>
 
+#include "../support/trace_part.hpp"
+
 #include <cstdlib>
 #include <random>
 
@@ -12,18 +14,7 @@ using namespace clearfit;
 
 namespace {
 
-struct Part {
-  Mesh mesh;
-  ContactSurface contact;
-  std::unique_ptr<RayIndex> index;
-  explicit Part(Mesh m) : mesh(std::move(m)) {
-    ContactSelector s;
-    s.group = "contact";
-    contact = select_contact(mesh, s);
-    index = make_ray_index(mesh);
-  }
-  TraceScene scene() const { return {&mesh, &contact, index.get(), nullptr}; }
-};
+using Part = test::TracePart;
 
 double test_scale() {
   const char* s = std::getenv("CLEARFIT_RAY_TEST_SCALE");

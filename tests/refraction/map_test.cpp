@@ -6,6 +6,8 @@
 #include <clearfit/refraction/map.hpp>
 #include <gtest/gtest.h>
 
+#include "../support/trace_part.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <cstdio>
@@ -36,18 +38,7 @@ struct Rig {
   }
 };
 
-struct Part {
-  Mesh mesh;
-  ContactSurface contact;
-  std::unique_ptr<RayIndex> index;
-  explicit Part(Mesh m) : mesh(std::move(m)) {
-    ContactSelector s;
-    s.group = "contact";
-    contact = select_contact(mesh, s);
-    index = make_ray_index(mesh);
-  }
-  TraceScene scene() const { return {&mesh, &contact, index.get(), nullptr}; }
-};
+using Part = test::TracePart;
 
 struct Errors {
   std::vector<double> e;
