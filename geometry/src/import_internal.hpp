@@ -7,6 +7,7 @@
 #include <Eigen/Core>
 #include <filesystem>
 #include <optional>
+#include <algorithm>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -30,6 +31,30 @@ struct RawMesh {
 std::string display(const std::filesystem::path& path);
 /// Whole file as bytes; throws InputError if it cannot be read.
 std::string read_file_bytes(const std::filesystem::path& path);
+
+/// Walks a text line by line (split at '\n'), counting lines from 1.
+class LineCursor {
+ public:
+  explicit LineCursor(const std::string& text, size_t pos = 0, int line_no = 0)
+      : text_(text), pos_(pos), line_no_(line_no) {}
+  /// The next line, without its '\n'; false at the end of the text.
+  bool next(std::string_view& line) {
+    if (pos_ >= text_.size()) return false;
+    size_t end = text_.find('\n', pos_);
+    if (end == std::string::npos) end = text_.size();
+    line = std::string_view(text_.data() + pos_, end - pos_);
+    pos_ = end + 1;
+    ++line_no_;
+    return true;
+  }
+  int line_no() const { return line_no_; }
+  size_t pos() const { return std::min(pos_, text_.size()); }
+
+ private:
+  const std::string& text_;
+  size_t pos_;
+  int line_no_;
+};
 
 /// Whitespace-separated tokens of a line.
 std::vector<std::string_view> split_ws(std::string_view line);

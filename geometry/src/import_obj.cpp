@@ -16,14 +16,10 @@ namespace {
 
 // Checks vertex coordinates and face sizes; returns the number of 'f' lines.
 size_t check_obj_text(const std::string& text, const std::string& name) {
-  size_t pos = 0, vertices = 0, faces = 0;
-  int line_no = 0;
-  while (pos < text.size()) {
-    size_t end = text.find('\n', pos);
-    if (end == std::string::npos) end = text.size();
-    std::string_view line(text.data() + pos, end - pos);
-    pos = end + 1;
-    ++line_no;
+  size_t vertices = 0, faces = 0;
+  LineCursor lines(text);
+  for (std::string_view line; lines.next(line);) {
+    const int line_no = lines.line_no();
     const auto tok = split_ws(line.substr(0, line.find('#')));
     if (tok.empty()) continue;
     if (tok[0] == "v") {

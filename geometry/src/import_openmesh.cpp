@@ -132,15 +132,11 @@ std::uint64_t parse_count(std::string_view t, const std::string& name, const std
 // (comments after '#' removed when `comments`).
 template <class F>
 void for_lines(const std::string& text, size_t pos, int line_no, bool comments, F&& f) {
-  while (pos < text.size()) {
-    size_t end = text.find('\n', pos);
-    if (end == std::string::npos) end = text.size();
-    std::string_view line(text.data() + pos, end - pos);
+  LineCursor lines(text, pos, line_no);
+  for (std::string_view line; lines.next(line);) {
     if (comments) line = line.substr(0, line.find('#'));
-    pos = end + 1;
-    ++line_no;
     auto tok = split_ws(line);
-    if (!tok.empty() && !f(line_no, tok)) return;
+    if (!tok.empty() && !f(lines.line_no(), tok)) return;
   }
 }
 
@@ -167,16 +163,11 @@ std::uint64_t check_ascii_body(const std::string& text, size_t pos, int line_no,
 Declared check_off(const std::string& text, const std::string& name) {
   Declared d;
   std::vector<std::string_view> head;
-  size_t pos = 0;
-  int line_no = 0;
+  LineCursor lines(text);
   bool binary = false;
   // Header: "[ST][C][N][4][n]OFF [BINARY]", then the three counts (possibly on the same line).
-  while (pos < text.size() && head.size() < 4) {
-    size_t end = text.find('\n', pos);
-    if (end == std::string::npos) end = text.size();
-    std::string_view line(text.data() + pos, end - pos);
-    pos = end + 1;
-    ++line_no;
+  for (std::string_view line; head.size() < 4 && lines.next(line);) {
+    const int line_no = lines.line_no();
     for (auto t : split_ws(line.substr(0, line.find('#')))) {
       if (head.empty() && (t.size() < 3 || t.substr(t.size() - 3) != "OFF"))
         throw InputError(name, "line " + std::to_string(line_no), "an OFF file starts with 'OFF'");
@@ -195,7 +186,7 @@ Declared check_off(const std::string& text, const std::string& name) {
                                            std::to_string(d.faces) + " faces, more than the file can hold");
     return d;
   }
-  const std::uint64_t tokens = check_ascii_body(text, pos, line_no, true, d.vertices, name);
+  const std::uint64_t tokens = check_ascii_body(text, lines.pos(), lines.line_no(), true, d.vertices, name);
   if (tokens < 3 * d.vertices + d.faces)
     throw InputError(name, "", "declares " + std::to_string(d.vertices) + " vertices and " + std::to_string(d.faces) +
                                    " faces but holds only " + std::to_string(tokens) + " numbers (truncated?)");
@@ -211,15 +202,10 @@ Declared check_ply(const std::string& text, const std::string& name) {
   };
   std::vector<Element> elements;
   std::string format;
-  size_t pos = 0;
-  int line_no = 0;
+  LineCursor lines(text);
   bool ended = false;
-  while (pos < text.size() && !ended) {
-    size_t end = text.find('\n', pos);
-    if (end == std::string::npos) end = text.size();
-    std::string_view line(text.data() + pos, end - pos);
-    pos = end + 1;
-    ++line_no;
+  for (std::string_view line; !ended && lines.next(line);) {
+    const int line_no = lines.line_no();
     const auto tok = split_ws(line);
     const std::string where = "line " + std::to_string(line_no);
     if (line_no == 1 && (tok.size() != 1 || tok[0] != "ply")) throw InputError(name, where, "a PLY file starts with 'ply'");
@@ -237,8 +223,8 @@ Declared check_ply(const std::string& text, const std::string& name) {
     if (e.name == "face") d.faces = e.count;
   }
   const bool vertex_first = !elements.empty() && elements.front().name == "vertex";
-  std::uint64_t have = text.size() - std::min(pos, text.size());  // binary: at least one byte per value
-  if (format == "ascii") have = check_ascii_body(text, pos, line_no, false, vertex_first ? d.vertices : 0, name);
+  std::uint64_t have = text.size() - lines.pos();  // binary: at least one byte per value
+  if (format == "ascii") have = check_ascii_body(text, lines.pos(), lines.line_no(), false, vertex_first ? d.vertices : 0, name);
   if (needed > have)
     throw InputError(name, "header", "declares " + std::to_string(needed) + " values (" + std::to_string(d.vertices) +
                                          " vertices, " + std::to_string(d.faces) + " faces) but the file holds fewer (truncated?)");

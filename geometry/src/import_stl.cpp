@@ -70,13 +70,9 @@ RawMesh read_ascii(const std::string& text, const std::string& name, bool may_be
                      may_be_binary ? "if this is a binary STL, its triangle count does not match the file size"
                                    : "export the mesh again");
   };
-  size_t pos = 0;
-  while (pos < text.size()) {
-    size_t end = text.find('\n', pos);
-    if (end == std::string::npos) end = text.size();
-    std::string_view line(text.data() + pos, end - pos);
-    pos = end + 1;
-    ++line_no;
+  LineCursor lines(text);
+  for (std::string_view line; lines.next(line);) {
+    line_no = lines.line_no();
     const auto tok = split_ws(line);
     if (tok.empty()) continue;
     const std::string_view key = tok[0];
