@@ -346,4 +346,6 @@ Run add_bench(CLI::App& app) {
   };
 }
 
+static const Registration registered{"bench", 90, add_bench};
+
 }  // namespace clearfit::cli

@@ -5,7 +5,26 @@
 
 #include <clearfit/error.hpp>
 #include <iostream>
+#include <algorithm>
 #include <map>
+
+namespace clearfit::cli {
+namespace {
+std::vector<RegisteredCommand>& registry() {
+  static std::vector<RegisteredCommand> commands;
+  return commands;
+}
+}  // namespace
+Registration::Registration(std::string name, int order, AddCommand add) {
+  registry().push_back({std::move(name), order, add});
+}
+std::vector<RegisteredCommand> registered_commands() {
+  auto commands = registry();
+  std::sort(commands.begin(), commands.end(),
+            [](const auto& a, const auto& b) { return a.order < b.order; });
+  return commands;
+}
+}  // namespace clearfit::cli
 
 int main(int argc, char** argv) {
   CLI::App app{"clearfit " CLEARFIT_VERSION
@@ -14,15 +33,13 @@ int main(int argc, char** argv) {
   app.failure_message(CLI::FailureMessage::help);
   app.set_version_flag("--version", std::string("clearfit ") + CLEARFIT_VERSION);
   std::map<CLI::App*, clearfit::cli::Run> runs;
-  auto add = [&](clearfit::cli::Run (*make)(CLI::App&)) {
+  auto add = [&](clearfit::cli::AddCommand make) {
     const auto before = app.get_subcommands({});
     clearfit::cli::Run run = make(app);
     for (CLI::App* sub : app.get_subcommands({}))
       if (std::find(before.begin(), before.end(), sub) == before.end()) runs[sub] = std::move(run);
   };
-  add(clearfit::cli::add_mesh_info);
-  add(clearfit::cli::add_map);
-  add(clearfit::cli::add_bench);
+  for (const auto& command : clearfit::cli::registered_commands()) add(command.add);
 
   try {
     app.parse(argc, argv);

@@ -255,4 +255,6 @@ Run add_map(CLI::App& app) {
   };
 }
 
+static const Registration registered{"map", 20, add_map};
+
 }  // namespace clearfit::cli

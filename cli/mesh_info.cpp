@@ -51,4 +51,6 @@ Run add_mesh_info(CLI::App& app) {
   };
 }
 
+static const Registration registered{"mesh-info", 10, add_mesh_info};
+
 }  // namespace clearfit::cli

@@ -1,0 +1,15 @@
+#pragma once
+// sRGB transfer function (IEC 61966-2-1): camera images are sRGB-encoded; the
+// skin model and the blanching signal work in linear light.
+#include <cstdint>
+
+namespace clearfit::srgb {
+
+/// Encoded value in [0, 1] → linear light in [0, 1] (exact piecewise curve).
+double to_linear(double encoded);
+/// Linear light in [0, 1] → encoded value in [0, 1]; inputs are clamped to [0, 1].
+double from_linear(double linear);
+/// Table of to_linear(v / 255) for every 8-bit code v.
+const float* to_linear_table8();
+
+}  // namespace clearfit::srgb
