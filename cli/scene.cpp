@@ -6,50 +6,6 @@
 #include <set>
 
 namespace clearfit::cli {
-namespace {
-
-class Reader {
- public:
-  explicit Reader(std::filesystem::path file) : file_(std::move(file)) {}
-
-  [[noreturn]] void fail(const YAML::Node& node, const std::string& key, const std::string& problem) const {
-    const std::string where = (node.Mark().line >= 0 ? "line " + std::to_string(node.Mark().line + 1) + ", " : "") + "key '" + key + "'";
-    throw InputError(file_.string(), where, problem, "see the scene file format in README.md");
-  }
-  void only_keys(const YAML::Node& map, const std::string& prefix, const std::set<std::string>& allowed) const {
-    if (!map.IsMap()) fail(map, prefix, "expected a mapping of keys to values");
-    for (const auto& kv : map) {
-      const auto key = kv.first.as<std::string>();
-      if (!allowed.count(key)) {
-        std::string list;
-        for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
-        fail(kv.first, prefix.empty() ? key : prefix + "." + key, "unknown key (expected one of: " + list + ")");
-      }
-    }
-  }
-  template <class T>
-  std::optional<T> get(const YAML::Node& map, const std::string& key, const std::string& full, const char* what) const {
-    const YAML::Node n = map[key];
-    if (!n) return std::nullopt;
-    if (!n.IsScalar()) fail(n, full, std::string("expected ") + what);
-    try {
-      return n.as<T>();
-    } catch (const YAML::Exception&) {
-      fail(n, full, std::string("expected ") + what + ", got '" + n.Scalar() + "'");
-    }
-  }
-  std::optional<std::string> path(const YAML::Node& map, const std::string& key, const std::string& full) const {
-    auto s = get<std::string>(map, key, full, "a file path");
-    if (!s) return s;
-    std::filesystem::path p(*s);
-    return (p.is_absolute() ? p : file_.parent_path() / p).lexically_normal().string();
-  }
-
- private:
-  std::filesystem::path file_;
-};
-
-}  // namespace
 
 SceneFile read_scene(const std::filesystem::path& file) {
   if (std::filesystem::is_directory(file)) throw InputError(file.string(), "", "is a directory, expected a scene file (YAML)");
@@ -63,11 +19,13 @@ SceneFile read_scene(const std::filesystem::path& file) {
   } catch (const YAML::Exception& e) {
     throw InputError(file.string(), "", std::string("cannot read the scene file: ") + e.what());
   }
-  Reader r(file);
+  SceneReader r(file);
   SceneFile s;
   s.path = file;
   if (!root || root.IsNull()) throw InputError(file.string(), "", "is empty", "see the scene file format in README.md");
-  r.only_keys(root, "", {"mesh", "units", "ior", "medium_ior", "skin_ior", "contact", "camera", "pose", "map", "outputs"});
+  r.only_keys(root, "", {"mesh", "units", "ior", "medium_ior", "skin_ior", "contact", "camera", "pose", "map", "outputs",
+                    "captures", "calibration", "assess", "simulation"});
+  s.root = root;
   s.mesh = r.path(root, "mesh", "mesh");
   s.units = r.get<std::string>(root, "units", "units", "a unit (um, mm, cm, m, in, ft)");
   s.camera = r.path(root, "camera", "camera");
@@ -102,7 +60,8 @@ SceneFile read_scene(const std::filesystem::path& file) {
     s.tolerance_um = r.get<double>(m, "tolerance_um", "map.tolerance_um", "a number of micrometres");
   }
   if (const YAML::Node o = root["outputs"]) {
-    r.only_keys(o, "outputs", {"map", "stats", "inverse", "texel_mm"});
+    r.only_keys(o, "outputs", {"map", "stats", "inverse", "texel_mm", "folder"});
+    s.out_folder = r.path(o, "folder", "outputs.folder");
     s.out_inverse = r.path(o, "inverse", "outputs.inverse");
     s.texel_mm = r.get<double>(o, "texel_mm", "outputs.texel_mm", "a length in mm");
     s.out_map = r.path(o, "map", "outputs.map");
