@@ -42,8 +42,8 @@ clearfit_require(CLI11_FOUND "CLI11" libcli11-dev)
 find_package(yaml-cpp QUIET)
 clearfit_require(yaml-cpp_FOUND "yaml-cpp" libyaml-cpp-dev)
 
-find_package(OpenCV QUIET COMPONENTS core imgproc imgcodecs videoio calib3d)
-clearfit_require(OpenCV_FOUND "OpenCV (core imgproc imgcodecs videoio calib3d)" libopencv-dev)
+find_package(OpenCV QUIET COMPONENTS core imgproc imgcodecs videoio video calib3d)
+clearfit_require(OpenCV_FOUND "OpenCV (core imgproc imgcodecs videoio video calib3d)" libopencv-dev)
 
 find_package(apriltag QUIET)
 clearfit_require(apriltag_FOUND "AprilTag" libapriltag-dev)

@@ -1,0 +1,99 @@
+#pragma once
+// The fit assessment: captures → window averages → blanching signal on the
+// chart → pressure (with a per-person calibration) → hotspots → values per
+// mesh vertex. The caller hands in the traced part (forward and inverse
+// refraction maps); this module reads the captures and computes; the reports
+// module turns the result into files.
+#include <clearfit/camera/camera_model.hpp>
+#include <clearfit/fit/blanching.hpp>
+#include <clearfit/fit/capture.hpp>
+#include <clearfit/fit/hotspots.hpp>
+#include <clearfit/fit/pressure_model.hpp>
+#include <clearfit/refraction/inverse_map.hpp>
+#include <clearfit/refraction/map.hpp>
+
+#include <functional>
+#include <optional>
+
+namespace clearfit {
+
+/// Either two captures (baseline = not worn, worn) or one holding both phases.
+struct CaptureSources {
+  std::filesystem::path baseline, worn, both;
+};
+
+struct AssessmentOptions {
+  int window_frames = 100;           ///< frames averaged per phase (the study: 100)
+  int chunk_frames = 5;              ///< granularity of the windows, frames
+  bool compensate_motion = true;
+  double max_motion_px = 10.0;
+  BlanchingOptions blanching;
+  std::vector<double> thresholds_kpa{4.3, 5.5};  ///< capillary closing, the study's blanching onset
+  /// Without a calibration: thresholds on the signal y, in multiples of the
+  /// noise (default 5 σ) unless given as values.
+  std::vector<double> signal_thresholds;
+  double signal_threshold_sigmas = 5.0;
+  double min_hotspot_area_mm2 = 0.05;
+  double max_saturated_fraction = 0.02;  ///< more saturated pixels than this in a window is an error
+  double min_mean_code = 10.0;           ///< a darker window (mean 8-bit green) is an error
+  /// Progress: stage name, done, total (0: unknown).
+  std::function<void(const std::string&, int, int)> progress;
+};
+
+struct PhaseReport {
+  std::string source;
+  int frames_total = 0;
+  FrameWindow window;
+  double fps = 0;
+  double motion_px_max = 0, jitter_px_rms = 0;
+  bool motion_compensated = false;
+  double saturated_fraction = 0, mean_code = 0;
+};
+
+struct Coverage {
+  double contact_area_mm2 = 0;   ///< the charted contact surface
+  double seen_area_mm2 = 0;      ///< seen through the part, in both averages
+  double hidden_outside_view_mm2 = 0;   ///< projects outside the image
+  double hidden_blocked_mm2 = 0;        ///< inside the image but not seen through the part
+  std::string blocked_reason;           ///< the forward map's dominant reason for pixels that miss the skin
+};
+
+struct Assessment {
+  PhaseReport baseline, worn;
+  std::optional<PhaseSplit> split;
+  BlanchingSignal signal;
+  ChartRaster raster;
+  bool calibrated = false;
+  ChartField pressure, pressure_sigma;       ///< kPa; empty grids without a calibration
+  std::vector<std::uint8_t> pressure_status; ///< PressureStatus per texel (invalid where unseen)
+  double below_detection_fraction = 0, saturated_fraction = 0;  ///< of seen texels
+  double peak_kpa = 0, mean_kpa = 0;         ///< over seen texels with an estimate
+  std::vector<Hotspot> hotspots;
+  std::vector<double> thresholds;            ///< the thresholds used, in the field's unit
+  std::vector<std::vector<int>> hotspot_labels;  ///< one label image per threshold
+  std::vector<float> vertex_pressure, vertex_signal;  ///< per mesh vertex, NaN where unseen / off the contact
+  cv::Mat skin_camera;                       ///< last worn frame (BGR8), as the camera saw it
+  cv::Mat skin_chart;                        ///< the same resampled onto the chart (BGR8)
+  Coverage coverage;
+  std::vector<std::string> warnings;
+  double read_ms = 0, work_ms = 0, total_ms = 0;
+};
+
+/// The traced part the assessment works on.
+struct AssessmentScene {
+  const Mesh* mesh = nullptr;
+  const ContactSurface* contact = nullptr;
+  const Chart* chart = nullptr;
+  const CameraModel* camera = nullptr;
+  Rigid3 cam_from_part;
+  const RefractionMap* forward = nullptr;
+  const InverseMap* inverse = nullptr;
+};
+
+/// Runs the assessment. Throws InputError on bad captures (see capture.hpp),
+/// windows longer than the captures, saturated or dark windows, a missing
+/// phase.
+Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& captures,
+                           const std::optional<PressureCalibration>& calibration, const AssessmentOptions& options);
+
+}  // namespace clearfit

@@ -1,0 +1,145 @@
+#pragma once
+// Captures: a "not worn" (baseline) and a "worn" video or image folder, read
+// once. Each frame's green channel is linearised from sRGB and added, inside
+// the region of the image that can see the skin, into partial sums of a few
+// frames ("chunks"), so averaging windows are chosen after the read without
+// decoding anything twice. Per frame the read also measures motion (enhanced
+// correlation, translation only, of a patch against a reference frame), the mean green of an 8×8
+// grid of blocks (for splitting one video into its two phases and for pulse),
+// and saturated / dark pixels.
+//
+// Motion compensation: each frame is accumulated at an integer pixel shift
+// within 0.75 px of its measured motion (free: an index offset; kept from
+// frame to frame while it fits, so jitter around a position is not split), so drift of any size up
+// to the refusal limit is undone; the remaining sub-pixel shifts are averaged
+// per window and applied once, when the window's average is resampled onto the
+// chart (no per-frame resampling). The blur left by sub-pixel jitter inside a
+// window is reported.
+#include <clearfit/geometry/mesh.hpp>
+#include <opencv2/core.hpp>
+
+#include <filesystem>
+#include <functional>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace clearfit {
+
+struct CaptureInfo {
+  std::filesystem::path source;
+  bool is_video = false;
+  int frames = 0;      ///< frames read (after read_capture), else as reported by the container / folder
+  double fps = 0;      ///< 0 when unknown (image folders)
+  int width = 0, height = 0;
+};
+
+/// Reads a capture as 8-bit BGR frames: a video file (any format OpenCV's
+/// FFmpeg back end reads) or a folder of images (PNG, JPEG, TIFF, BMP, sorted
+/// by file name). Throws InputError for a missing source, an unreadable video,
+/// a folder without images, a frame that cannot be read or differs in size
+/// from the first, or a frame that is not 8-bit.
+class FrameReader {
+ public:
+  explicit FrameReader(const std::filesystem::path& source);
+  ~FrameReader();
+  FrameReader(const FrameReader&) = delete;
+  FrameReader& operator=(const FrameReader&) = delete;
+  const CaptureInfo& info() const;
+  /// The next frame (8-bit BGR; grey frames are expanded); false at the end.
+  bool read(cv::Mat& bgr);
+  /// Name of the frame last read (file name, or "frame N").
+  std::string frame_name() const;
+
+ private:
+  struct Impl;
+  std::unique_ptr<Impl> impl_;
+};
+
+struct CaptureReadOptions {
+  cv::Rect roi;                   ///< pixels that can see the skin; empty: the whole image
+  int chunk_frames = 5;           ///< frames per stored partial sum
+  bool register_motion = true;    ///< measure and compensate motion
+  int patch_size = 256;           ///< registration patch edge, px (a power of two), centred on the roi
+  double max_motion_px = 10.0;    ///< motion beyond this (against the reference) is refused
+  int expected_width = 0, expected_height = 0;  ///< the camera's imager; 0: not checked
+  std::string role;               ///< "baseline", "worn" or "capture", for messages
+  /// Called after each frame (frames done, frames expected or 0 if unknown).
+  std::function<void(int, int)> progress;
+};
+
+/// The registration reference: a patch of the first baseline frame. Shared by
+/// both captures so that both are aligned to the same frame.
+struct MotionReference {
+  cv::Mat patch;       ///< CV_32F linear green of the reference frame's patch
+  cv::Point origin;    ///< top-left of the patch in the image
+  bool empty() const { return patch.empty(); }
+};
+
+/// One capture read once (see the file comment).
+struct CaptureSums {
+  CaptureInfo info;
+  cv::Rect roi;
+  int chunk_frames = 0;
+  std::vector<cv::Mat> chunk_sum;      ///< CV_32F (roi size) sums of linear green, aligned to the reference
+  std::vector<int> chunk_count;        ///< frames in each chunk
+  std::vector<Vec2> shift_px;          ///< per frame: content displacement against the reference, px
+  std::vector<cv::Point> applied_shift;  ///< per frame: integer shift undone while accumulating
+  std::vector<std::array<float, 64>> blocks;  ///< per frame: mean linear green of 8×8 blocks of the roi
+  std::vector<float> saturated_fraction;      ///< per frame: roi pixels with a channel at 255
+  std::vector<float> mean_code;               ///< per frame: mean 8-bit green code over the roi
+  cv::Mat last_frame;                  ///< the last frame read (BGR8, full image), for pictures
+  double read_ms = 0, work_ms = 0;     ///< time waiting for decoded frames / accumulating
+};
+
+/// Reads a whole capture (decoding on one thread while accumulating on the
+/// others). `reference`: when empty it is set from this capture's first frame.
+/// Throws InputError: frame size differs from the expected imager, motion
+/// beyond the limit (naming the frame and the size), no frames.
+CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadOptions& options,
+                         MotionReference& reference);
+
+/// A window of frames [first, first + count) of a capture, chunk-aligned.
+struct FrameWindow {
+  int first = 0, count = 0;
+};
+
+/// The average of a window: linear green, aligned to the reference frame up
+/// to `residual_shift_px` (the mean sub-pixel motion still to be applied when
+/// resampling: the reference image at pixel p is `mean` at p + residual −
+/// roi.tl()).
+struct PhaseAverage {
+  FrameWindow window;
+  cv::Rect roi;
+  cv::Mat mean;          ///< CV_32F, roi size, linear green in [0, 1]
+  cv::Mat variance;      ///< CV_32F: variance of `mean` (from the spread of the chunk means; 0 if < 3 chunks)
+  Vec2 residual_shift_px = Vec2::Zero();
+  double motion_px_max = 0;      ///< largest measured displacement in the window, px
+  double jitter_px_rms = 0;      ///< rms of the sub-pixel shifts around their mean (blur left), px
+  double saturated_fraction = 0; ///< mean over the window
+  double mean_code = 0;          ///< mean 8-bit green code over the roi
+};
+
+/// Averages `window` (rounded inwards to whole chunks; InputError when fewer
+/// than `min_frames` remain, naming the capture and the counts).
+PhaseAverage average_window(const CaptureSums& sums, FrameWindow window, int min_frames);
+
+/// The study's protocol in one video: baseline, then press. Finds the step in
+/// the per-frame block statistics (two-segment least squares), the end of the
+/// press's transient (the statistics within 10 % of their final value), and
+/// returns the last `window` frames before the step (minus a margin) and the
+/// last `window` frames of the settled press.
+struct PhaseSplit {
+  int press_frame = 0;          ///< first frame of the press
+  int settled_frame = 0;        ///< first frame within 10 % of the final state
+  FrameWindow baseline, worn;
+  double step_sigmas = 0;       ///< size of the step in units of the frame-to-frame noise
+};
+/// Throws InputError when there is no significant step (a missing phase) or
+/// too few frames on either side.
+PhaseSplit split_phases(const CaptureSums& sums, int window_frames);
+
+/// The last `window_frames` frames of a capture (whole chunks).
+FrameWindow last_frames(const CaptureSums& sums, int window_frames);
+
+}  // namespace clearfit

@@ -1,0 +1,237 @@
+#include <algorithm>
+#include <chrono>
+#include <clearfit/error.hpp>
+#include <clearfit/fit/assessment.hpp>
+#include <cmath>
+#include <limits>
+#include <opencv2/imgproc.hpp>
+#include <sstream>
+
+namespace clearfit {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+
+std::string fmt(double v, int digits = 1) {
+  std::ostringstream s;
+  s.setf(std::ios::fixed);
+  s.precision(digits);
+  s << v;
+  return s.str();
+}
+
+/// Bounding box of the pixels that see the skin, padded for motion.
+cv::Rect seen_roi(const RefractionMap& map, int pad) {
+  int x0 = map.width, y0 = map.height, x1 = -1, y1 = -1;
+  for (int y = 0; y < map.height; ++y)
+    for (int x = 0; x < map.width; ++x)
+      if (map.status[map.index(x, y)] == PixelStatus::valid) {
+        x0 = std::min(x0, x), x1 = std::max(x1, x);
+        y0 = std::min(y0, y), y1 = std::max(y1, y);
+      }
+  if (x1 < 0) return {};
+  cv::Rect r(x0 - pad, y0 - pad, x1 - x0 + 1 + 2 * pad, y1 - y0 + 1 + 2 * pad);
+  return r & cv::Rect(0, 0, map.width, map.height);
+}
+
+PhaseReport phase_report(const CaptureSums& sums, const PhaseAverage& avg, bool compensated) {
+  PhaseReport r;
+  r.source = sums.info.source.string();
+  r.frames_total = sums.info.frames;
+  r.window = avg.window;
+  r.fps = sums.info.fps;
+  r.motion_px_max = avg.motion_px_max;
+  r.jitter_px_rms = avg.jitter_px_rms;
+  r.motion_compensated = compensated;
+  r.saturated_fraction = avg.saturated_fraction;
+  r.mean_code = avg.mean_code;
+  return r;
+}
+
+void check_exposure(const PhaseAverage& avg, const std::string& source, const std::string& role, const AssessmentOptions& o) {
+  const std::string frames = "frames " + std::to_string(avg.window.first) + ".." + std::to_string(avg.window.first + avg.window.count - 1);
+  if (avg.saturated_fraction > o.max_saturated_fraction)
+    throw InputError(source, frames,
+                     "the " + role + " capture is overexposed: " + fmt(100 * avg.saturated_fraction) +
+                         " % of the pixels that see the skin are saturated (at most " + fmt(100 * o.max_saturated_fraction) + " % allowed)",
+                     "lower the exposure or the light, lock auto exposure, and film again");
+  if (avg.mean_code < o.min_mean_code)
+    throw InputError(source, frames,
+                     "the " + role + " capture is too dark: mean green " + fmt(avg.mean_code) + " of 255 where the skin is seen (at least " +
+                         fmt(o.min_mean_code) + " needed)",
+                     "raise the exposure or the light, and film again");
+}
+
+/// A BGR8 image resampled onto the chart (black where unseen).
+cv::Mat chart_picture(const cv::Mat& bgr, const InverseMap& inv, const Vec2& shift) {
+  cv::Mat mx(inv.height, inv.width, CV_32F), my(inv.height, inv.width, CV_32F);
+  for (int j = 0; j < inv.height; ++j)
+    for (int i = 0; i < inv.width; ++i) {
+      const auto k = inv.index(i, j);
+      mx.at<float>(j, i) = inv.valid[k] ? inv.map_x[k] + static_cast<float>(shift.x()) : -1e6f;
+      my.at<float>(j, i) = inv.valid[k] ? inv.map_y[k] + static_cast<float>(shift.y()) : -1e6f;
+    }
+  cv::Mat out;
+  cv::remap(bgr, out, mx, my, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(0, 0, 0));
+  return out;
+}
+
+}  // namespace
+
+Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& captures,
+                           const std::optional<PressureCalibration>& calibration, const AssessmentOptions& o) {
+  if (!scene.mesh || !scene.contact || !scene.chart || !scene.camera || !scene.forward || !scene.inverse)
+    throw std::invalid_argument("assess_captures: the scene is incomplete");
+  if (o.window_frames < 1) throw InputError("", "captures.window_frames", "must be at least 1");
+  const auto t0 = Clock::now();
+  Assessment a;
+  const RefractionMap& map = *scene.forward;
+  const InverseMap& inv = *scene.inverse;
+
+  CaptureReadOptions ro;
+  ro.roi = seen_roi(map, static_cast<int>(std::ceil(o.max_motion_px)) + 2);
+  ro.chunk_frames = o.chunk_frames;
+  ro.register_motion = o.compensate_motion;
+  ro.max_motion_px = o.max_motion_px;
+  ro.expected_width = scene.camera->width;
+  ro.expected_height = scene.camera->height;
+  MotionReference reference;
+  auto read = [&](const std::filesystem::path& path, const std::string& role) {
+    ro.role = role;
+    ro.progress = [&](int done, int total) {
+      if (o.progress) o.progress("reading the " + role + " capture", done, total);
+    };
+    CaptureSums sums = read_capture(path, ro, reference);
+    a.read_ms += sums.read_ms;
+    a.work_ms += sums.work_ms;
+    return sums;
+  };
+
+  PhaseAverage base_avg, worn_avg;
+  cv::Mat worn_frame;
+  const bool split_mode = !captures.both.empty();
+  if (split_mode) {
+    const CaptureSums sums = read(captures.both, "capture");
+    const PhaseSplit split = split_phases(sums, o.window_frames);
+    base_avg = average_window(sums, split.baseline, o.window_frames);
+    worn_avg = average_window(sums, split.worn, o.window_frames);
+    a.baseline = phase_report(sums, base_avg, o.compensate_motion);
+    a.worn = phase_report(sums, worn_avg, o.compensate_motion);
+    a.split = split;
+    worn_frame = sums.last_frame;
+  } else {
+    if (captures.baseline.empty() || captures.worn.empty())
+      throw InputError("", "captures", "a phase is missing: give both 'baseline' (not worn) and 'worn', or 'both' for one video holding both",
+                       "see the scene file format in README.md");
+    const CaptureSums base = read(captures.baseline, "baseline");
+    base_avg = average_window(base, last_frames(base, o.window_frames), o.window_frames);
+    a.baseline = phase_report(base, base_avg, o.compensate_motion);
+    const CaptureSums worn = read(captures.worn, "worn");
+    worn_avg = average_window(worn, last_frames(worn, o.window_frames), o.window_frames);
+    a.worn = phase_report(worn, worn_avg, o.compensate_motion);
+    worn_frame = worn.last_frame;
+  }
+  check_exposure(base_avg, a.baseline.source, "baseline", o);
+  check_exposure(worn_avg, a.worn.source, "worn", o);
+  for (const auto* p : {&a.baseline, &a.worn}) {
+    const std::string role = p == &a.baseline ? "baseline" : "worn";
+    if (p->motion_px_max > 0.5)
+      a.warnings.push_back("motion during the " + role + " capture: up to " + fmt(p->motion_px_max) + " px, compensated" +
+                           (p->jitter_px_rms > 0.2 ? " (jitter of " + fmt(p->jitter_px_rms, 2) + " px rms left as blur)" : ""));
+    if (p->saturated_fraction > 0.001)
+      a.warnings.push_back(fmt(100 * p->saturated_fraction, 2) + " % of the pixels that see the skin are saturated in the " + role +
+                           " capture: their blanching is underestimated");
+  }
+  if (o.progress) o.progress("blanching signal", 0, 0);
+
+  // Signal on the chart.
+  a.signal = compute_blanching(base_avg, worn_avg, inv, o.blanching);
+  for (const auto& w : a.signal.warnings) a.warnings.push_back(w);
+  const ChartGrid& g = a.signal.y.grid;
+  a.raster = rasterize_chart(*scene.mesh, *scene.chart, g);
+
+  // Pressure.
+  HotspotOptions ho;
+  ho.min_area_mm2 = o.min_hotspot_area_mm2;
+  const double sigma_mm = std::max(o.blanching.smoothing_mm, 0.5 * g.texel_mm);
+  ho.samples_per_mm2 = 1.0 / (4 * M_PI * sigma_mm * sigma_mm);
+  std::vector<std::uint8_t> saturated(g.size(), 0);
+  if (calibration) {
+    a.calibrated = true;
+    a.pressure = {g, std::vector<float>(g.size(), kNaN)};
+    a.pressure_sigma = {g, std::vector<float>(g.size(), kNaN)};
+    a.pressure_status.assign(g.size(), static_cast<std::uint8_t>(PressureStatus::invalid));
+    calibration->invert(a.signal.y.value, a.signal.sigma_y.value, a.pressure.value, a.pressure_sigma.value, a.pressure_status);
+    long long seen = 0, below = 0, sat = 0, est = 0;
+    double sum = 0;
+    for (std::size_t k = 0; k < g.size(); ++k) {
+      if (!std::isfinite(a.signal.y.value[k])) continue;
+      ++seen;
+      const auto st = static_cast<PressureStatus>(a.pressure_status[k]);
+      if (st == PressureStatus::below_detection) ++below;
+      if (st == PressureStatus::saturated) ++sat, saturated[k] = 1;
+      if (std::isfinite(a.pressure.value[k])) {
+        ++est;
+        sum += a.pressure.value[k];
+        a.peak_kpa = std::max(a.peak_kpa, static_cast<double>(a.pressure.value[k]));
+      }
+    }
+    a.below_detection_fraction = seen ? static_cast<double>(below) / seen : 0;
+    a.saturated_fraction = seen ? static_cast<double>(sat) / seen : 0;
+    a.mean_kpa = est ? sum / est : 0;
+    if (a.saturated_fraction > 0)
+      a.warnings.push_back(fmt(100 * a.saturated_fraction, 2) + " % of the seen skin is beyond the calibration's range (saturated): "
+                           "the pressure there is at least the value shown");
+    // Below detection counts as 0 kPa for the hotspot search (it is below every threshold).
+    ChartField search = a.pressure;
+    for (std::size_t k = 0; k < g.size(); ++k)
+      if (a.pressure_status[k] == static_cast<std::uint8_t>(PressureStatus::below_detection)) search.value[k] = 0.f;
+    a.thresholds = o.thresholds_kpa;
+    ho.thresholds = a.thresholds;
+    a.hotspots = find_hotspots(search, &a.pressure_sigma, &saturated, a.raster, ho, &a.hotspot_labels);
+    a.vertex_pressure = sample_at_vertices(search, *scene.chart);
+  } else {
+    a.thresholds = o.signal_thresholds;
+    if (a.thresholds.empty()) a.thresholds = {o.signal_threshold_sigmas * std::max(a.signal.noise_sigma, 1e-6)};
+    ho.thresholds = a.thresholds;
+    a.hotspots = find_hotspots(a.signal.y, &a.signal.sigma_y, nullptr, a.raster, ho, &a.hotspot_labels);
+    a.warnings.push_back("no pressure calibration: the report shows the blanching signal and where it is significant, not kPa");
+  }
+  a.vertex_signal = sample_at_vertices(a.signal.y, *scene.chart);
+
+  // Coverage of the contact surface.
+  Coverage& c = a.coverage;
+  long long by_status[kPixelStatusCount] = {};
+  for (int k = 0; k < kPixelStatusCount; ++k) by_status[k] = map.stats.by_status[k];
+  int dominant = -1;
+  for (int k : {static_cast<int>(PixelStatus::contact_tir), static_cast<int>(PixelStatus::exits_elsewhere),
+                static_cast<int>(PixelStatus::entry_tir), static_cast<int>(PixelStatus::contact_first)})
+    if (by_status[k] > 0 && (dominant < 0 || by_status[k] > by_status[dominant])) dominant = k;
+  c.blocked_reason = dominant < 0 ? "other" : to_string(static_cast<PixelStatus>(dominant));
+  for (std::size_t k = 0; k < g.size(); ++k) {
+    if (a.raster.face[k] < 0) continue;
+    const double area = a.raster.area_mm2[k];
+    c.contact_area_mm2 += area;
+    if (std::isfinite(a.signal.y.value[k])) {
+      c.seen_area_mm2 += area;
+      continue;
+    }
+    const Vec3 in_cam = scene.cam_from_part.apply(a.raster.point[k]);
+    const Vec2 px = in_cam.z() > 0 ? scene.camera->project(in_cam) : Vec2::Constant(-1e9);
+    const bool inside = px.allFinite() && px.x() >= -0.5 && px.y() >= -0.5 && px.x() <= scene.camera->width - 0.5 &&
+                        px.y() <= scene.camera->height - 0.5;
+    (inside ? c.hidden_blocked_mm2 : c.hidden_outside_view_mm2) += area;
+  }
+  if (c.contact_area_mm2 > 0 && c.seen_area_mm2 < 0.5 * c.contact_area_mm2)
+    a.warnings.push_back("the camera sees only " + fmt(100 * c.seen_area_mm2 / c.contact_area_mm2) +
+                         " % of the contact surface through the part; the rest is not assessed");
+
+  // Pictures: the worn capture as seen, and resampled onto the chart.
+  a.skin_camera = worn_frame;
+  a.skin_chart = chart_picture(worn_frame, inv, worn_avg.residual_shift_px);
+  a.total_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
+  return a;
+}
+
+}  // namespace clearfit

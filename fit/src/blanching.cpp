@@ -1,0 +1,186 @@
+#include <algorithm>
+#include <clearfit/error.hpp>
+#include <clearfit/fit/blanching.hpp>
+#include <clearfit/fit/srgb.hpp>
+#include <cmath>
+#include <limits>
+#include <opencv2/imgproc.hpp>
+
+namespace clearfit {
+namespace {
+
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+
+ChartGrid grid_of(const InverseMap& inverse) {
+  ChartGrid g;
+  g.width = inverse.width;
+  g.height = inverse.height;
+  g.texel_mm = inverse.texel_mm;
+  g.uv_origin = inverse.uv_origin;
+  return g;
+}
+
+ChartField empty_field(const ChartGrid& g) { return {g, std::vector<float>(g.size(), kNaN)}; }
+
+double median(std::vector<double> v) {
+  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+
+/// Camera pixels per texel edge (median over the grid), from the inverse map's steps.
+double pixels_per_texel(const InverseMap& inv) {
+  std::vector<double> steps;
+  for (int j = 0; j < inv.height; j += 4)
+    for (int i = 0; i + 1 < inv.width; i += 4) {
+      const auto a = inv.index(i, j), b = inv.index(i + 1, j);
+      if (inv.valid[a] && inv.valid[b]) steps.push_back(std::hypot(inv.map_x[b] - inv.map_x[a], inv.map_y[b] - inv.map_y[a]));
+    }
+  const double m = median(std::move(steps));
+  return std::isfinite(m) && m > 0 ? m : 1.0;
+}
+
+}  // namespace
+
+ChartField resample_to_chart(const PhaseAverage& average, const InverseMap& inverse) {
+  const ChartGrid g = grid_of(inverse);
+  ChartField out = empty_field(g);
+  if (g.size() == 0) return out;
+  cv::Mat mx(g.height, g.width, CV_32F), my(g.height, g.width, CV_32F);
+  const float dx = static_cast<float>(average.residual_shift_px.x() - average.roi.x);
+  const float dy = static_cast<float>(average.residual_shift_px.y() - average.roi.y);
+  for (int j = 0; j < g.height; ++j)
+    for (int i = 0; i < g.width; ++i) {
+      const auto k = g.index(i, j);
+      const bool ok = inverse.valid[k] != 0;
+      mx.at<float>(j, i) = ok ? inverse.map_x[k] + dx : -1e6f;
+      my.at<float>(j, i) = ok ? inverse.map_y[k] + dy : -1e6f;
+    }
+  cv::Mat sampled;
+  // Linear interpolation; taps outside the averaged roi read NaN and make the texel unseen.
+  cv::remap(average.mean, sampled, mx, my, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(kNaN));
+  for (int j = 0; j < g.height; ++j)
+    for (int i = 0; i < g.width; ++i) {
+      const auto k = g.index(i, j);
+      if (!inverse.valid[k]) continue;
+      // Taps must lie inside the roi: remap blends border NaN into edge texels as NaN already;
+      // a texel whose pixel is outside the roi by more than a pixel reads the border value.
+      const float x = mx.at<float>(j, i), y = my.at<float>(j, i);
+      if (x < 0 || y < 0 || x > average.roi.width - 1 || y > average.roi.height - 1) continue;
+      out.value[k] = sampled.at<float>(j, i);
+    }
+  return out;
+}
+
+ChartField smooth_field(const ChartField& field, double sigma_mm) {
+  if (!(sigma_mm > 0) || field.grid.size() == 0) return field;
+  const ChartGrid& g = field.grid;
+  cv::Mat v(g.height, g.width, CV_32F), w(g.height, g.width, CV_32F);
+  for (int j = 0; j < g.height; ++j)
+    for (int i = 0; i < g.width; ++i) {
+      const float x = field.value[g.index(i, j)];
+      const bool ok = std::isfinite(x);
+      v.at<float>(j, i) = ok ? x : 0.f;
+      w.at<float>(j, i) = ok ? 1.f : 0.f;
+    }
+  const double s = sigma_mm / g.texel_mm;
+  cv::GaussianBlur(v, v, cv::Size(), s, s, cv::BORDER_CONSTANT);
+  cv::GaussianBlur(w, w, cv::Size(), s, s, cv::BORDER_CONSTANT);
+  ChartField out{g, std::vector<float>(g.size(), kNaN)};
+  for (int j = 0; j < g.height; ++j)
+    for (int i = 0; i < g.width; ++i) {
+      const auto k = g.index(i, j);
+      if (std::isfinite(field.value[k]) && w.at<float>(j, i) > 1e-6f) out.value[k] = v.at<float>(j, i) / w.at<float>(j, i);
+    }
+  return out;
+}
+
+BlanchingSignal compute_blanching(const PhaseAverage& baseline, const PhaseAverage& worn, const InverseMap& inverse,
+                                  const BlanchingOptions& options) {
+  if (!(options.smoothing_mm >= 0) || !std::isfinite(options.smoothing_mm))
+    throw std::invalid_argument("compute_blanching: smoothing_mm must be >= 0");
+  BlanchingSignal s;
+  const ChartGrid g = grid_of(inverse);
+  s.baseline_green = resample_to_chart(baseline, inverse);
+  s.worn_green = resample_to_chart(worn, inverse);
+  // Variances of the two averages on the chart (same resampling).
+  PhaseAverage base_var = baseline, worn_var = worn;
+  base_var.mean = baseline.variance;
+  worn_var.mean = worn.variance;
+  const ChartField vb = resample_to_chart(base_var, inverse), vw = resample_to_chart(worn_var, inverse);
+
+  ChartField raw = empty_field(g), sigma = empty_field(g);
+  s.plain_difference = empty_field(g);
+  constexpr float kDark = 1e-4f;  // linear green below this carries no usable ratio
+  for (std::size_t k = 0; k < g.size(); ++k) {
+    const float G = s.worn_green.value[k], G0 = s.baseline_green.value[k];
+    if (!(std::isfinite(G) && std::isfinite(G0)) || G < kDark || G0 < kDark) continue;
+    raw.value[k] = std::log(G / G0);
+    sigma.value[k] = std::sqrt(std::max(0.f, vw.value[k]) / (G * G) + std::max(0.f, vb.value[k]) / (G0 * G0));
+    s.plain_difference.value[k] = static_cast<float>(255.0 * (srgb::from_linear(G) - srgb::from_linear(G0)));
+    ++s.texels_seen;
+  }
+  if (s.texels_seen == 0)
+    throw InputError("", "captures", "no chart texel is seen in both averages (the captures are black there, or the map sees nothing)",
+                     "check the exposure and that the camera and pose match the captures");
+
+  // Reference: a user disk, or the robust mode of the seen texels.
+  std::vector<double> ref;
+  if (options.reference_uv_mm) {
+    for (int j = 0; j < g.height; ++j)
+      for (int i = 0; i < g.width; ++i)
+        if (const float r = raw.value[g.index(i, j)]; std::isfinite(r) && (g.uv(i, j) - *options.reference_uv_mm).norm() <= options.reference_radius_mm)
+          ref.push_back(r);
+    if (ref.empty())
+      throw InputError("", "assess.reference_uv_mm", "the reference disk holds no seen texel of the chart",
+                       "place it on skin that the camera sees through the part and that is not pressed");
+    s.reference_log_ratio = median(ref);
+    s.reference = "disk of " + std::to_string(options.reference_radius_mm) + " mm at chart (" +
+                  std::to_string(options.reference_uv_mm->x()) + ", " + std::to_string(options.reference_uv_mm->y()) + ") mm, " +
+                  std::to_string(ref.size()) + " texels";
+  } else {
+    for (float r : raw.value)
+      if (std::isfinite(r)) ref.push_back(r);
+    double m = median(ref);
+    for (int iter = 0; iter < 5; ++iter) {
+      std::vector<double> dev;
+      dev.reserve(ref.size());
+      for (double r : ref) dev.push_back(std::abs(r - m));
+      const double mad = std::max(1.4826 * median(dev), 1e-6);
+      std::vector<double> kept;
+      for (double r : ref)
+        if (r - m <= 3 * mad) kept.push_back(r);
+      const double next = median(kept);
+      if (std::abs(next - m) < 1e-9) break;
+      m = next;
+    }
+    s.reference_log_ratio = m;
+    s.reference = "robust mode of all seen texels (assumes the pressed area is less than half of what is seen)";
+  }
+  for (auto& r : raw.value)
+    if (std::isfinite(r)) r -= static_cast<float>(s.reference_log_ratio);
+
+  s.y = smooth_field(raw, options.smoothing_mm);
+  // Noise after smoothing: independent camera pixels inside the kernel (4π σ_px²).
+  const double sigma_px = options.smoothing_mm / g.texel_mm * pixels_per_texel(inverse);
+  const float reduction = static_cast<float>(1.0 / std::sqrt(std::max(1.0, 4 * M_PI * sigma_px * sigma_px)));
+  s.sigma_y = smooth_field(sigma, options.smoothing_mm);
+  std::vector<double> sig;
+  for (auto& v : s.sigma_y.value)
+    if (std::isfinite(v)) {
+      v *= reduction;
+      sig.push_back(v);
+    }
+  s.noise_sigma = median(std::move(sig));
+  long long above = 0;
+  for (std::size_t k = 0; k < g.size(); ++k)
+    if (std::isfinite(s.y.value[k]) && s.y.value[k] > 3 * std::max(s.sigma_y.value[k], 1e-6f)) ++above;
+  if (!options.reference_uv_mm && above > s.texels_seen * 0.4)
+    s.warnings.push_back("blanching covers " + std::to_string(100 * above / s.texels_seen) +
+                         " % of the seen skin, so the automatic reference (the unpressed majority) may be pressed too: "
+                         "give assess.reference_uv_mm on skin that is surely not pressed");
+  return s;
+}
+
+}  // namespace clearfit

@@ -1,0 +1,440 @@
+#include <algorithm>
+#include <chrono>
+#include <clearfit/error.hpp>
+#include <clearfit/fit/capture.hpp>
+#include <clearfit/fit/srgb.hpp>
+#include <cmath>
+#include <condition_variable>
+#include <deque>
+#include <exception>
+#include <mutex>
+#include <numeric>
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/imgproc.hpp>
+#include <opencv2/video/tracking.hpp>
+#include <opencv2/videoio.hpp>
+#include <limits>
+#include <optional>
+#include <sstream>
+#include <tbb/parallel_for.h>
+#include <thread>
+
+namespace clearfit {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
+
+std::string fmt(double v, int digits = 2) {
+  std::ostringstream s;
+  s.setf(std::ios::fixed);
+  s.precision(digits);
+  s << v;
+  return s.str();
+}
+
+bool is_image_file(const std::filesystem::path& p) {
+  std::string ext = p.extension().string();
+  std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  return ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".tif" || ext == ".tiff" || ext == ".bmp";
+}
+
+}  // namespace
+
+struct FrameReader::Impl {
+  CaptureInfo info;
+  cv::VideoCapture video;
+  std::vector<std::filesystem::path> files;
+  int next = 0;
+  std::string last_name;
+};
+
+FrameReader::FrameReader(const std::filesystem::path& source) : impl_(std::make_unique<Impl>()) {
+  Impl& m = *impl_;
+  m.info.source = source;
+  if (!std::filesystem::exists(source))
+    throw InputError(source.string(), "", "capture not found", "give a video file or a folder of images");
+  if (std::filesystem::is_directory(source)) {
+    for (const auto& e : std::filesystem::directory_iterator(source))
+      if (e.is_regular_file() && is_image_file(e.path())) m.files.push_back(e.path());
+    std::sort(m.files.begin(), m.files.end());
+    if (m.files.empty())
+      throw InputError(source.string(), "", "the folder holds no images (.png .jpg .tif .bmp)",
+                       "give a folder of frames or a video file");
+    m.info.frames = static_cast<int>(m.files.size());
+    const cv::Mat first = cv::imread(m.files.front().string(), cv::IMREAD_UNCHANGED);
+    if (first.empty()) throw InputError(m.files.front().string(), "", "cannot be read as an image");
+    m.info.width = first.cols;
+    m.info.height = first.rows;
+  } else {
+    m.info.is_video = true;
+    if (!m.video.open(source.string(), cv::CAP_FFMPEG) || !m.video.isOpened())
+      throw InputError(source.string(), "", "cannot be opened as a video",
+                       "give a video FFmpeg reads (e.g. .mp4, .mkv, .avi) or a folder of images");
+    m.info.fps = m.video.get(cv::CAP_PROP_FPS);
+    m.info.frames = static_cast<int>(m.video.get(cv::CAP_PROP_FRAME_COUNT));
+    m.info.width = static_cast<int>(m.video.get(cv::CAP_PROP_FRAME_WIDTH));
+    m.info.height = static_cast<int>(m.video.get(cv::CAP_PROP_FRAME_HEIGHT));
+    if (!(m.info.fps > 0 && m.info.fps < 10000)) m.info.fps = 0;
+  }
+}
+
+FrameReader::~FrameReader() = default;
+
+const CaptureInfo& FrameReader::info() const { return impl_->info; }
+
+std::string FrameReader::frame_name() const { return impl_->last_name; }
+
+bool FrameReader::read(cv::Mat& bgr) {
+  Impl& m = *impl_;
+  cv::Mat frame;
+  if (m.info.is_video) {
+    if (!m.video.read(frame) || frame.empty()) return false;
+    m.last_name = "frame " + std::to_string(m.next);
+  } else {
+    if (m.next >= static_cast<int>(m.files.size())) return false;
+    const auto& file = m.files[m.next];
+    frame = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
+    m.last_name = file.filename().string();
+    if (frame.empty()) throw InputError(file.string(), "", "cannot be read as an image");
+    if (frame.depth() != CV_8U)
+      throw InputError(file.string(), "", "is not an 8-bit image", "captures are 8-bit sRGB frames as a camera writes them");
+  }
+  if (frame.cols != m.info.width || frame.rows != m.info.height)
+    throw InputError(m.info.source.string(), m.last_name,
+                     "is " + std::to_string(frame.cols) + "x" + std::to_string(frame.rows) + ", the capture's first frame is " +
+                         std::to_string(m.info.width) + "x" + std::to_string(m.info.height),
+                     "all frames of a capture must have one size");
+  if (frame.channels() == 1)
+    cv::cvtColor(frame, bgr, cv::COLOR_GRAY2BGR);
+  else if (frame.channels() == 4)
+    cv::cvtColor(frame, bgr, cv::COLOR_BGRA2BGR);
+  else
+    bgr = frame;
+  ++m.next;
+  return true;
+}
+
+namespace {
+
+/// Decodes frames on a thread of its own into a short queue.
+class FrameQueue {
+ public:
+  explicit FrameQueue(FrameReader& reader) : reader_(reader), thread_([this] { run(); }) {}
+  ~FrameQueue() {
+    {
+      std::lock_guard lock(mutex_);
+      stop_ = true;
+    }
+    cv_.notify_all();
+    thread_.join();
+  }
+  /// Next frame and its name; false at the end. Rethrows a decoding error.
+  bool pop(cv::Mat& frame, std::string& name) {
+    std::unique_lock lock(mutex_);
+    cv_.wait(lock, [&] { return !queue_.empty() || done_; });
+    if (queue_.empty()) {
+      if (error_) std::rethrow_exception(error_);
+      return false;
+    }
+    frame = std::move(queue_.front().first);
+    name = std::move(queue_.front().second);
+    queue_.pop_front();
+    cv_.notify_all();
+    return true;
+  }
+
+ private:
+  void run() {
+    try {
+      for (;;) {
+        cv::Mat frame;
+        if (!reader_.read(frame)) break;
+        std::unique_lock lock(mutex_);
+        cv_.wait(lock, [&] { return queue_.size() < 4 || stop_; });
+        if (stop_) break;
+        queue_.emplace_back(frame.clone(), reader_.frame_name());
+        cv_.notify_all();
+      }
+    } catch (...) {
+      std::lock_guard lock(mutex_);
+      error_ = std::current_exception();
+    }
+    std::lock_guard lock(mutex_);
+    done_ = true;
+    cv_.notify_all();
+  }
+
+  FrameReader& reader_;
+  std::mutex mutex_;
+  std::condition_variable cv_;
+  std::deque<std::pair<cv::Mat, std::string>> queue_;
+  bool done_ = false, stop_ = false;
+  std::exception_ptr error_;
+  std::thread thread_;
+};
+
+/// Linear green of a patch of a BGR8 frame, as CV_32F.
+cv::Mat linear_green_patch(const cv::Mat& bgr, const cv::Rect& rect) {
+  const float* lut = srgb::to_linear_table8();
+  cv::Mat out(rect.size(), CV_32F);
+  for (int y = 0; y < rect.height; ++y) {
+    const auto* src = bgr.ptr<cv::Vec3b>(rect.y + y) + rect.x;
+    auto* dst = out.ptr<float>(y);
+    for (int x = 0; x < rect.width; ++x) dst[x] = lut[src[x][1]];
+  }
+  return out;
+}
+
+}  // namespace
+
+CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadOptions& options,
+                         MotionReference& reference) {
+  if (options.chunk_frames < 1) throw std::invalid_argument("read_capture: chunk_frames must be >= 1");
+  if (options.patch_size < 16 || (options.patch_size & (options.patch_size - 1)) != 0)
+    throw std::invalid_argument("read_capture: patch_size must be a power of two >= 16");
+  FrameReader reader(source);
+  CaptureSums sums;
+  sums.info = reader.info();
+  const CaptureInfo& info = sums.info;
+  const std::string role = options.role.empty() ? "capture" : options.role;
+  if (options.expected_width > 0 && (info.width != options.expected_width || info.height != options.expected_height))
+    throw InputError(source.string(), "frame size",
+                     std::to_string(info.width) + "x" + std::to_string(info.height) + " does not match the camera's imager " +
+                         std::to_string(options.expected_width) + "x" + std::to_string(options.expected_height),
+                     "use the captures filmed with the calibrated camera at its full resolution");
+  const cv::Rect image(0, 0, info.width, info.height);
+  sums.roi = options.roi.area() > 0 ? (options.roi & image) : image;
+  if (sums.roi.area() == 0) throw std::invalid_argument("read_capture: the roi lies outside the image");
+  sums.chunk_frames = options.chunk_frames;
+  const cv::Rect roi = sums.roi;
+
+  // Registration patch: centred on the roi, clipped to the image.
+  const int ps = std::min({options.patch_size, info.width, info.height});
+  int patch = 1;
+  while (patch * 2 <= ps) patch *= 2;
+  cv::Rect patch_rect(roi.x + roi.width / 2 - patch / 2, roi.y + roi.height / 2 - patch / 2, patch, patch);
+  patch_rect.x = std::clamp(patch_rect.x, 0, info.width - patch);
+  patch_rect.y = std::clamp(patch_rect.y, 0, info.height - patch);
+  const Vec2 previous_shift = Vec2::Zero();
+  if (!reference.empty() && (reference.origin != patch_rect.tl() || reference.patch.size() != patch_rect.size()))
+    throw std::invalid_argument("read_capture: the motion reference was taken with another roi");
+
+  const float* lut = srgb::to_linear_table8();
+  FrameQueue queue(reader);
+  cv::Mat frame;
+  std::string name;
+  int n = 0;
+  std::vector<double> row_block_sum(static_cast<std::size_t>(roi.height) * 8);
+  std::vector<int> row_saturated(roi.height);
+  std::vector<long long> row_code(roi.height);
+  for (;;) {
+    const auto t_wait = Clock::now();
+    if (!queue.pop(frame, name)) break;
+    sums.read_ms += ms_since(t_wait);
+    const auto t_work = Clock::now();
+    // Motion: content displacement of this frame against the reference.
+    Vec2 shift = Vec2::Zero();
+    if (options.register_motion) {
+      const cv::Mat g = linear_green_patch(frame, patch_rect);
+      if (reference.empty()) {
+        reference.patch = g;
+        reference.origin = patch_rect.tl();
+      } else {
+        // Enhanced correlation (ECC), translation only, started from the previous frame's
+        // displacement: intensity-based and sub-pixel; robust to the press's local change.
+        const Vec2 start = sums.shift_px.empty() ? previous_shift : sums.shift_px.back();
+        cv::Mat warp = (cv::Mat_<float>(2, 3) << 1, 0, static_cast<float>(start.x()), 0, 1, static_cast<float>(start.y()));
+        try {
+          cv::findTransformECC(reference.patch, g, warp, cv::MOTION_TRANSLATION,
+                               cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 50, 1e-4), cv::noArray(), 5);
+          shift = Vec2(warp.at<float>(0, 2), warp.at<float>(1, 2));
+        } catch (const cv::Exception&) {
+          shift = Vec2::Constant(std::numeric_limits<double>::quiet_NaN());
+        }
+      }
+      if (!shift.allFinite() || shift.norm() > options.max_motion_px)
+        throw InputError(source.string(), name,
+                         "moved " + (shift.allFinite() ? fmt(shift.norm(), 1) + " px" : std::string("beyond recognition")) +
+                             " against the first baseline frame, more than the " + fmt(options.max_motion_px, 1) +
+                             " px clearfit compensates",
+                         "hold the part and the skin still while filming (a fixture helps), or raise "
+                         "captures.max_motion_px if the motion is a steady drift");
+    }
+    // Integer part undone while accumulating, with hysteresis: frames jittering around one
+    // position keep one integer shift, so the sub-pixel residuals stay as tight as the jitter.
+    cv::Point d = sums.applied_shift.empty() ? cv::Point(0, 0) : sums.applied_shift.back();
+    if (std::abs(shift.x() - d.x) > 0.75) d.x = static_cast<int>(std::lround(shift.x()));
+    if (std::abs(shift.y() - d.y) > 0.75) d.y = static_cast<int>(std::lround(shift.y()));
+    const int chunk = n / options.chunk_frames;
+    if (chunk >= static_cast<int>(sums.chunk_sum.size())) {
+      sums.chunk_sum.emplace_back(cv::Mat::zeros(roi.size(), CV_32F));
+      sums.chunk_count.push_back(0);
+    }
+    cv::Mat& acc = sums.chunk_sum[chunk];
+    tbb::parallel_for(tbb::blocked_range<int>(0, roi.height, 16), [&](const tbb::blocked_range<int>& rows) {
+      for (int y = rows.begin(); y < rows.end(); ++y) {
+        // Aligned pixel (x, y) of the roi reads the frame at (x, y) + d (clamped at the image edge).
+        const int sy = std::clamp(roi.y + y + d.y, 0, info.height - 1);
+        const auto* src = frame.ptr<cv::Vec3b>(sy);
+        float* dst = acc.ptr<float>(y);
+        double block[8] = {};
+        int saturated = 0;
+        long long code = 0;
+        for (int x = 0; x < roi.width; ++x) {
+          const int sx = std::clamp(roi.x + x + d.x, 0, info.width - 1);
+          const cv::Vec3b& p = src[sx];
+          const float v = lut[p[1]];
+          dst[x] += v;
+          block[x * 8 / roi.width] += v;
+          saturated += (p[0] == 255) | (p[1] == 255) | (p[2] == 255);
+          code += p[1];
+        }
+        std::copy(block, block + 8, row_block_sum.begin() + static_cast<std::ptrdiff_t>(y) * 8);
+        row_saturated[y] = saturated;
+        row_code[y] = code;
+      }
+    });
+    ++sums.chunk_count[chunk];
+    std::array<float, 64> blocks{};
+    std::array<int, 64> block_pixels{};
+    for (int y = 0; y < roi.height; ++y)
+      for (int b = 0; b < 8; ++b) {
+        const int k = (y * 8 / roi.height) * 8 + b;
+        blocks[k] += static_cast<float>(row_block_sum[static_cast<std::size_t>(y) * 8 + b]);
+        // pixels in column block b of a row: x with x*8/w == b
+        block_pixels[k] += (roi.width * (b + 1) + 7) / 8 - (roi.width * b + 7) / 8;
+      }
+    for (int k = 0; k < 64; ++k) blocks[k] = block_pixels[k] > 0 ? blocks[k] / block_pixels[k] : 0.f;
+    sums.blocks.push_back(blocks);
+    sums.saturated_fraction.push_back(static_cast<float>(
+        std::accumulate(row_saturated.begin(), row_saturated.end(), 0LL) / static_cast<double>(roi.area())));
+    sums.mean_code.push_back(
+        static_cast<float>(std::accumulate(row_code.begin(), row_code.end(), 0LL) / static_cast<double>(roi.area())));
+    sums.shift_px.push_back(shift);
+    sums.applied_shift.push_back(d);
+    sums.work_ms += ms_since(t_work);
+    ++n;
+    if (options.progress) options.progress(n, info.frames);
+    sums.last_frame = frame;
+  }
+  if (n == 0) throw InputError(source.string(), "", "holds no frames", "check the " + role + " capture");
+  sums.info.frames = n;
+  return sums;
+}
+
+FrameWindow last_frames(const CaptureSums& sums, int window_frames) {
+  const int n = sums.info.frames;
+  return {std::max(0, n - window_frames), std::min(window_frames, n)};
+}
+
+PhaseAverage average_window(const CaptureSums& sums, FrameWindow window, int min_frames) {
+  const int c = sums.chunk_frames;
+  const int n = static_cast<int>(sums.shift_px.size());
+  // Whole chunks inside the window; a final partial chunk counts as whole when the capture ends there.
+  int first_chunk = (window.first + c - 1) / c;
+  int end_frame = std::min(window.first + window.count, n);
+  int end_chunk = end_frame == n ? static_cast<int>(sums.chunk_sum.size()) : end_frame / c;
+  PhaseAverage avg;
+  avg.roi = sums.roi;
+  avg.window.first = first_chunk * c;
+  avg.window.count = 0;
+  for (int k = first_chunk; k < end_chunk; ++k) avg.window.count += sums.chunk_count[k];
+  const std::string role = sums.info.source.filename().string();
+  if (avg.window.count < std::max(1, min_frames))
+    throw InputError(sums.info.source.string(), "frames " + std::to_string(window.first) + ".." +
+                                                    std::to_string(window.first + window.count - 1),
+                     "the averaging window holds " + std::to_string(avg.window.count) + " usable frames, fewer than the " +
+                         std::to_string(min_frames) + " asked for (the capture has " + std::to_string(n) + " frames)",
+                     "film longer, or lower captures.window_frames");
+  avg.mean = cv::Mat::zeros(sums.roi.size(), CV_32F);
+  for (int k = first_chunk; k < end_chunk; ++k) avg.mean += sums.chunk_sum[k];
+  avg.mean /= avg.window.count;
+  // Variance of the mean from the spread of the chunk means (equal-size chunks).
+  const int chunks = end_chunk - first_chunk;
+  avg.variance = cv::Mat::zeros(sums.roi.size(), CV_32F);
+  if (chunks >= 3) {
+    cv::Mat diff;
+    for (int k = first_chunk; k < end_chunk; ++k) {
+      diff = sums.chunk_sum[k] / sums.chunk_count[k] - avg.mean;
+      avg.variance += diff.mul(diff);
+    }
+    avg.variance /= static_cast<double>(chunks) * (chunks - 1);
+  }
+  Vec2 residual = Vec2::Zero();
+  double sat = 0, code = 0;
+  const int f0 = avg.window.first, f1 = avg.window.first + avg.window.count;
+  for (int f = f0; f < f1; ++f) {
+    residual += sums.shift_px[f] - Vec2(sums.applied_shift[f].x, sums.applied_shift[f].y);
+    avg.motion_px_max = std::max(avg.motion_px_max, sums.shift_px[f].norm());
+    sat += sums.saturated_fraction[f];
+    code += sums.mean_code[f];
+  }
+  const int m = f1 - f0;
+  avg.residual_shift_px = residual / m;
+  double jitter = 0;
+  for (int f = f0; f < f1; ++f)
+    jitter += (sums.shift_px[f] - Vec2(sums.applied_shift[f].x, sums.applied_shift[f].y) - avg.residual_shift_px).squaredNorm();
+  avg.jitter_px_rms = std::sqrt(jitter / m);
+  avg.saturated_fraction = sat / m;
+  avg.mean_code = code / m;
+  return avg;
+}
+
+PhaseSplit split_phases(const CaptureSums& sums, int window_frames) {
+  const int n = static_cast<int>(sums.blocks.size());
+  const std::string src = sums.info.source.string();
+  if (n < 4)
+    throw InputError(src, "", "has " + std::to_string(n) + " frames: too few to hold a baseline and a press",
+                     "film the baseline (not worn) and then the press (worn), each longer than the averaging window");
+  // Log block means: a press raises the green of some blocks; exposure drift moves all alike.
+  std::vector<Eigen::Matrix<double, 64, 1>> v(n);
+  for (int t = 0; t < n; ++t)
+    for (int k = 0; k < 64; ++k) v[t][k] = std::log(std::max(sums.blocks[t][k], 1e-6f));
+  // Two-segment least squares: the split that minimises the within-segment scatter.
+  std::vector<Eigen::Matrix<double, 64, 1>> prefix(n + 1, Eigen::Matrix<double, 64, 1>::Zero());
+  std::vector<double> prefix_sq(n + 1, 0);
+  for (int t = 0; t < n; ++t) {
+    prefix[t + 1] = prefix[t] + v[t];
+    prefix_sq[t + 1] = prefix_sq[t] + v[t].squaredNorm();
+  }
+  auto sse = [&](int a, int b) {  // scatter of frames [a, b)
+    const auto s = prefix[b] - prefix[a];
+    return (prefix_sq[b] - prefix_sq[a]) - s.squaredNorm() / (b - a);
+  };
+  int best = -1;
+  double best_cost = std::numeric_limits<double>::infinity();
+  for (int t = 2; t <= n - 2; ++t) {
+    const double cost = sse(0, t) + sse(t, n);
+    if (cost < best_cost) best_cost = cost, best = t;
+  }
+  // Noise: median frame-to-frame change of the block statistics (robust to the step itself).
+  std::vector<double> diffs;
+  for (int t = 1; t < n; ++t) diffs.push_back((v[t] - v[t - 1]).norm());
+  std::nth_element(diffs.begin(), diffs.begin() + diffs.size() / 2, diffs.end());
+  const double noise = std::max(diffs[diffs.size() / 2] / std::sqrt(2.0), 1e-9);
+  const Eigen::Matrix<double, 64, 1> before = (prefix[best] - prefix[0]) / best;
+  const int tail = std::max(1, std::min(20, (n - best) / 4));
+  const Eigen::Matrix<double, 64, 1> final_state = (prefix[n] - prefix[n - tail]) / tail;
+  PhaseSplit split;
+  split.step_sigmas = (final_state - before).norm() / noise;
+  if (split.step_sigmas < 8)
+    throw InputError(src, "", "shows no press: the image does not change between a baseline and a worn phase (step " +
+                                  fmt(split.step_sigmas, 1) + " sigma of the frame noise, 8 needed)",
+                     "give one video holding the baseline then the press, or give captures.baseline and captures.worn");
+  // The press starts at the first frame that has left the baseline by 10 % of the step.
+  const double step = (final_state - before).norm();
+  int press = best;
+  while (press > 1 && (v[press - 1] - before).norm() > 0.1 * step) --press;
+  int settled = best;
+  while (settled < n && (v[settled] - final_state).norm() > 0.1 * step) ++settled;
+  split.press_frame = press;
+  split.settled_frame = std::min(settled, n - 1);
+  const int margin = std::max(2, sums.chunk_frames);
+  const int base_end = press - margin;
+  split.baseline = {std::max(0, base_end - window_frames), std::min(window_frames, std::max(0, base_end))};
+  split.worn = {std::max(split.settled_frame, n - window_frames), n - std::max(split.settled_frame, n - window_frames)};
+  return split;
+}
+
+}  // namespace clearfit
