@@ -45,6 +45,9 @@ clearfit_require(yaml-cpp_FOUND "yaml-cpp" libyaml-cpp-dev)
 find_package(OpenCV QUIET COMPONENTS core imgproc imgcodecs videoio video calib3d)
 clearfit_require(OpenCV_FOUND "OpenCV (core imgproc imgcodecs videoio video calib3d)" libopencv-dev)
 
+find_package(OpenSSL QUIET COMPONENTS Crypto)
+clearfit_require(OpenSSL_FOUND "OpenSSL (libcrypto, for input hashes)" libssl-dev)
+
 find_package(apriltag QUIET)
 clearfit_require(apriltag_FOUND "AprilTag" libapriltag-dev)
 

@@ -1,4 +1,4 @@
-#include "npy.hpp"
+#include <clearfit/npy.hpp>
 
 #include <clearfit/error.hpp>
 #include <clearfit/refraction/inverse_map.hpp>

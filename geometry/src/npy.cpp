@@ -1,4 +1,4 @@
-#include "npy.hpp"
+#include <clearfit/npy.hpp>
 
 #include <clearfit/atomic_file.hpp>
 

@@ -1,0 +1,290 @@
+#include <algorithm>
+#include <chrono>
+#include <clearfit/atomic_file.hpp>
+#include <clearfit/error.hpp>
+#include <clearfit/npy.hpp>
+#include <clearfit/reports/assessment_report.hpp>
+#include <clearfit/reports/chart_images.hpp>
+#include <clearfit/reports/heatmap_glb.hpp>
+#include <cmath>
+#include <ctime>
+#include <cstdio>
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+namespace clearfit {
+namespace {
+
+using json = nlohmann::json;
+
+/// A finite number, or null (never NaN in the report).
+std::string fixed1(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.1f", v);
+  return buf;
+}
+
+json num(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
+json vec(const Vec3& v) { return v.allFinite() ? json{v.x(), v.y(), v.z()} : json(nullptr); }
+json vec(const Vec2& v) { return v.allFinite() ? json{v.x(), v.y()} : json(nullptr); }
+
+std::string utc_now() {
+  const std::time_t t = std::time(nullptr);
+  char buf[32];
+  std::strftime(buf, sizeof buf, "%Y-%m-%dT%H:%M:%SZ", std::gmtime(&t));
+  return buf;
+}
+
+json phase_json(const PhaseReport& p) {
+  return {{"source", p.source},
+          {"frames_total", p.frames_total},
+          {"frames_used", {p.window.first, p.window.first + p.window.count - 1}},
+          {"fps", num(p.fps)},
+          {"motion_px_max", num(p.motion_px_max)},
+          {"jitter_px_rms", num(p.jitter_px_rms)},
+          {"motion_compensated", p.motion_compensated},
+          {"saturated_fraction", num(p.saturated_fraction)},
+          {"mean_green_code", num(p.mean_code)}};
+}
+
+/// Colour range of the signal: 0 to its 99th percentile over the seen texels (at least 5 σ).
+std::pair<double, double> signal_range(const BlanchingSignal& signal) {
+  std::vector<float> v;
+  for (float y : signal.y.value)
+    if (std::isfinite(y)) v.push_back(y);
+  double hi = 5 * std::max(signal.noise_sigma, 1e-4);
+  if (!v.empty()) {
+    const auto k = v.begin() + static_cast<std::ptrdiff_t>(0.99 * static_cast<double>(v.size() - 1));
+    std::nth_element(v.begin(), k, v.end());
+    hi = std::max(hi, static_cast<double>(*k));
+  }
+  return {0.0, hi};
+}
+
+/// Colour range of the pressure heatmaps: 0 to the top of the calibration's range.
+std::pair<double, double> pressure_range(const AssessmentContext& c) {
+  return {0.0, c.calibration ? std::max(c.calibration->p_max_kpa, 1.0) : c.pressure_range_hi_kpa};
+}
+
+void write_field_npy(const ChartField& f, const std::filesystem::path& path) {
+  const ChartGrid& g = f.grid;
+  npy::write_float32(path, {static_cast<std::size_t>(g.height), static_cast<std::size_t>(g.width)},
+                     [&](std::size_t row, float* out) { std::copy_n(f.value.begin() + static_cast<std::ptrdiff_t>(row * g.width), g.width, out); });
+}
+
+void write_png(const cv::Mat& image, const std::filesystem::path& path) {
+  std::vector<unsigned char> bytes;
+  if (image.empty() || !cv::imencode(".png", image, bytes))
+    throw std::runtime_error("cannot encode " + path.filename().string() + " as PNG");
+  write_file_atomically(path, std::string(bytes.begin(), bytes.end()));
+}
+
+}  // namespace
+
+json assessment_report_json(const Assessment& a, const AssessmentScene& scene, const AssessmentContext& c) {
+  json inputs = json::array();
+  for (const auto& in : c.inputs) inputs.push_back({{"role", in.role}, {"path", in.path}, {"sha256", in.sha256}});
+  const Chart& chart = *scene.chart;
+  const ChartGrid& g = a.signal.y.grid;
+  const Coverage& cov = a.coverage;
+  const double contact = std::max(cov.contact_area_mm2, 1e-12);
+  json hotspots = json::array();
+  for (const Hotspot& h : a.hotspots) {
+    json j = {{"id", h.id},
+              {"area_mm2", num(h.area_mm2)},
+              {"centroid_mm", vec(h.centroid_mm)},
+              {"centre_of_pressure_mm", vec(h.centre_of_pressure_mm)},
+              {"centroid_uv_mm", vec(h.centroid_uv_mm)},
+              {"faces", h.faces},
+              {"texels", h.texels},
+              {"saturated_texels", h.flagged_texels}};
+    if (a.calibrated) {
+      j["threshold_kpa"] = num(h.threshold);
+      j["peak_kpa"] = num(h.peak);
+      j["peak_sigma_kpa"] = num(h.peak_sigma);
+      j["mean_kpa"] = num(h.mean);
+      j["mean_sigma_kpa"] = num(h.mean_sigma);
+    } else {
+      for (const char* k : {"threshold_kpa", "peak_kpa", "peak_sigma_kpa", "mean_kpa", "mean_sigma_kpa"}) j[k] = nullptr;
+      j["threshold_signal"] = num(h.threshold);
+      j["peak_signal"] = num(h.peak);
+      j["peak_sigma_signal"] = num(h.peak_sigma);
+      j["mean_signal"] = num(h.mean);
+      j["mean_sigma_signal"] = num(h.mean_sigma);
+    }
+    hotspots.push_back(j);
+  }
+  double blanched = 0;
+  double plain_sum = 0;
+  long long plain_n = 0;
+  for (std::size_t k = 0; k < g.size(); ++k) {
+    const float y = a.signal.y.value[k];
+    if (!std::isfinite(y)) continue;
+    if (y > 3 * std::max(a.signal.sigma_y.value[k], 1e-6f) && a.raster.face[k] >= 0) blanched += a.raster.area_mm2[k];
+    if (std::isfinite(a.signal.plain_difference.value[k])) plain_sum += a.signal.plain_difference.value[k], ++plain_n;
+  }
+  json pressure_cal = nullptr;
+  if (c.calibration) {
+    const PressureCalibration& p = *c.calibration;
+    pressure_cal = {{"source", p.path.string()},
+                    {"person", p.person},
+                    {"model", to_string(p.model)},
+                    {"y_max", num(p.logistic.y_max)},
+                    {"p50_kpa", num(p.logistic.p50_kpa)},
+                    {"width_kpa", num(p.logistic.width_kpa)},
+                    {"noise_sigma", num(p.noise_sigma)},
+                    {"rmse_kpa", num(p.rmse_kpa)},
+                    {"r2", num(p.r2)},
+                    {"linear_r2", num(p.r2_linear)},
+                    {"reference_r2", 0.439},
+                    {"presses", p.presses},
+                    {"range_kpa", {num(p.p_min_kpa), num(p.p_max_kpa)}}};
+  }
+  const auto [lo, hi] = pressure_range(c);
+  const auto [slo, shi] = signal_range(a.signal);
+  json pressure = nullptr;
+  if (a.calibrated)
+    pressure = {{"unit", "kPa"},
+                {"colormap", "viridis"},
+                {"range_kpa", {lo, hi}},
+                {"peak_kpa", num(a.peak_kpa)},
+                {"mean_kpa", num(a.mean_kpa)},
+                {"below_detection_fraction", num(a.below_detection_fraction)},
+                {"saturated_fraction", num(a.saturated_fraction)}};
+  json outputs = {{"heatmap_glb", "heatmap.glb"},
+                  {"chart_pressure_png", "chart_pressure.png"},
+                  {"chart_signal_png", "chart_signal.png"},
+                  {"skin_camera_png", "skin_camera.png"},
+                  {"skin_chart_png", "skin_chart.png"},
+                  {"pressure_npy", "pressure.npy"},
+                  {"signal_npy", "signal.npy"}};
+  if (a.calibrated) outputs["heatmap_signal_glb"] = "heatmap_signal.glb";
+  json split = nullptr;
+  if (a.split)
+    split = {{"press_frame", a.split->press_frame}, {"settled_frame", a.split->settled_frame}, {"step_sigmas", num(a.split->step_sigmas)}};
+  return {
+      {"schema", "clearfit.report/1"},
+      {"clearfit_version", c.clearfit_version},
+      {"created_utc", utc_now()},
+      {"run_time_s", num(c.run_time_s)},
+      {"scene", c.scene},
+      {"options", c.options},
+      {"inputs", inputs},
+      {"part",
+       {{"mesh", c.mesh_name},
+        {"vertices", scene.mesh->vertices.size()},
+        {"faces", scene.mesh->faces.size()},
+        {"ior", num(c.ior)},
+        {"medium_ior", num(c.medium_ior)},
+        {"contact_faces", scene.contact->faces.size()},
+        {"contact_area_mm2", num(scene.contact->area_mm2)},
+        {"fast_path", c.fast_path}}},
+      {"chart",
+       {{"texel_mm", g.texel_mm},
+        {"width", g.width},
+        {"height", g.height},
+        {"uv_min_mm", vec(Vec2(g.uv_origin))},
+        {"uv_max_mm", vec(Vec2(g.uv(g.width - 1, g.height - 1)))},
+        {"method", c.chart_method},
+        {"area_ratio_min", num(chart.area_ratio_min)},
+        {"area_ratio_max", num(chart.area_ratio_max)}}},
+      {"coverage",
+       {{"contact_area_mm2", num(cov.contact_area_mm2)},
+        {"seen_area_mm2", num(cov.seen_area_mm2)},
+        {"seen_fraction", num(cov.seen_area_mm2 / contact)},
+        {"hidden_fraction",
+         {{"total_internal_reflection", num(cov.blocked_reason == "contact_tir" || cov.blocked_reason == "entry_tir" ? cov.hidden_blocked_mm2 / contact : 0.0)},
+          {"outside_view", num(cov.hidden_outside_view_mm2 / contact)},
+          {"other", num(cov.blocked_reason == "contact_tir" || cov.blocked_reason == "entry_tir" ? 0.0 : cov.hidden_blocked_mm2 / contact)}}},
+        {"blocked_reason", cov.blocked_reason}}},
+      {"captures", {{"baseline", phase_json(a.baseline)}, {"worn", phase_json(a.worn)}, {"split", split}}},
+      {"signal",
+       {{"feature", "log_green_ratio"},
+        {"reference", a.signal.reference},
+        {"reference_log_ratio", num(a.signal.reference_log_ratio)},
+        {"noise_sigma", num(a.signal.noise_sigma)},
+        {"blanched_area_mm2", num(blanched)},
+        {"plain_difference_mean", plain_n ? num(plain_sum / plain_n) : json(nullptr)},
+        {"range", {slo, shi}}}},
+      {"calibration",
+       {{"camera", {{"rms_px", nullptr}, {"source", c.camera_source}}},
+        {"pose", {{"source", c.pose_source}, {"uncertainty_mm", nullptr}, {"uncertainty_deg", nullptr}}},
+        {"pressure", pressure_cal}}},
+      {"pressure", pressure},
+      {"thresholds_kpa", a.calibrated ? json(a.thresholds) : json::array()},
+      {"thresholds_signal", a.calibrated ? json::array() : json(a.thresholds)},
+      {"hotspots", hotspots},
+      {"warnings", a.warnings},
+      {"timings_ms", {{"decode_wait", num(a.read_ms)}, {"accumulate", num(a.work_ms)}, {"assessment", num(a.total_ms)}}},
+      {"outputs", outputs}};
+}
+
+std::vector<std::string> write_assessment_outputs(const Assessment& a, const AssessmentScene& scene,
+                                                  const CornerNormals& normals, const AssessmentContext& c,
+                                                  const std::filesystem::path& folder) {
+  std::vector<std::string> written;
+  const auto [lo, hi] = pressure_range(c);
+  const auto [slo, shi] = signal_range(a.signal);
+
+  std::vector<HeatmapMarker> markers;
+  for (const Hotspot& h : a.hotspots)
+    if (h.centroid_mm.allFinite())
+      markers.push_back({h.id, h.centroid_mm,
+                         a.calibrated ? "hotspot " + std::to_string(h.id) + ": peak " + fixed1(h.peak) + " kPa"
+                                      : "hotspot " + std::to_string(h.id) + ": blanching"});
+  auto glb = [&](bool pressure_view, const std::string& name) {
+    HeatmapInput in;
+    in.mesh = scene.mesh;
+    in.normals = &normals;
+    in.chart = scene.chart;
+    in.values = pressure_view ? a.vertex_pressure : a.vertex_signal;
+    in.scalars = {{"_PRESSURE_KPA", a.calibrated ? a.vertex_pressure : std::vector<float>(a.vertex_signal.size(), 0.f)},
+                  {"_BLANCH", a.vertex_signal}};
+    in.texture = pressure_view ? &a.pressure : &a.signal.y;
+    in.quantity = pressure_view ? "pressure_kpa" : "signal";
+    in.unit = pressure_view ? "kPa" : "";
+    in.range_lo = pressure_view ? lo : slo;
+    in.range_hi = pressure_view ? hi : shi;
+    in.hotspots = markers;
+    write_heatmap_glb(in, folder / name);
+    written.push_back(name);
+  };
+  if (a.calibrated) {
+    glb(true, "heatmap.glb");
+    glb(false, "heatmap_signal.glb");
+  } else {
+    glb(false, "heatmap.glb");
+  }
+  auto chart_png = [&](const ChartField& f, double l, double h, const std::string& unit, const std::string& title,
+                       const std::string& name) {
+    ChartImageInput in;
+    in.field = &f;
+    in.range_lo = l;
+    in.range_hi = h;
+    in.unit = unit;
+    in.title = title;
+    if (!a.hotspot_labels.empty()) in.hotspot_labels = a.hotspot_labels.back();
+    write_chart_heatmap_png(in, folder / name);
+    written.push_back(name);
+  };
+  if (a.calibrated)
+    chart_png(a.pressure, lo, hi, "kPa", "Pressure on the contact surface (kPa)", "chart_pressure.png");
+  else
+    chart_png(a.signal.y, slo, shi, "", "Blanching signal (no pressure calibration)", "chart_pressure.png");
+  chart_png(a.signal.y, slo, shi, "", "Blanching signal ln(G/G0), reference-normalised", "chart_signal.png");
+  write_png(a.skin_camera, folder / "skin_camera.png");
+  written.push_back("skin_camera.png");
+  cv::Mat chart_up;
+  cv::flip(a.skin_chart, chart_up, 0);  // v up, as in the chart heatmaps
+  write_png(chart_up, folder / "skin_chart.png");
+  written.push_back("skin_chart.png");
+  write_field_npy(a.calibrated ? a.pressure : a.signal.y, folder / "pressure.npy");
+  write_field_npy(a.signal.y, folder / "signal.npy");
+  written.push_back("pressure.npy");
+  written.push_back("signal.npy");
+  write_file_atomically(folder / "report.json", assessment_report_json(a, scene, c).dump(2) + "\n");
+  written.push_back("report.json");
+  return written;
+}
+
+}  // namespace clearfit
