@@ -11,6 +11,9 @@
 #include <clearfit/reports/report_html.hpp>
 #include <clearfit/refraction/inverse_map.hpp>
 #include <cmath>
+#include <clearfit/atomic_file.hpp>
+#include <clearfit/npy.hpp>
+#include <fstream>
 #include <iostream>
 #include <unistd.h>
 
@@ -80,6 +83,12 @@ void read_assess_sections(const SceneFile& sc, const CLI::App& sub, AssessOpts& 
   take(sub, "--texel-mm", o.texel_mm, sc.texel_mm);
 }
 
+std::string fmt(double v, int digits = 1) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*f", digits, v);
+  return buf;
+}
+
 void check_positive(const char* option, double v) {
   if (!(std::isfinite(v) && v > 0)) throw InputError("", option, "must be a positive number");
 }
@@ -115,10 +124,113 @@ class StagedFolder {
   bool committed_ = false;
 };
 
-std::string fmt(double v, int digits = 1) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.*f", digits, v);
-  return buf;
+void add_assess_options(CLI::App& sub, AssessOpts& o) {
+  sub.add_option("--out", o.out, "Output folder (default: the scene's outputs.folder, else out/ beside the scene)");
+  sub.add_option("--baseline", o.baseline, "Not-worn capture: a video or a folder of images");
+  sub.add_option("--worn", o.worn, "Worn capture: a video or a folder of images");
+  sub.add_option("--both", o.both, "One capture holding the baseline and then the press (split automatically)");
+  sub.add_option("--calibration", o.calibration, "Per-person pressure calibration (from clearfit calibrate-pressure)");
+  sub.add_option("--person", o.person, "Who wears the part (checked against the calibration)");
+  sub.add_option("--window-frames", o.window_frames, "Frames averaged per phase")->capture_default_str();
+  sub.add_option("--max-motion-px", o.max_motion_px, "Motion beyond this is refused, px")->capture_default_str();
+  sub.add_flag("--no-motion-compensation", o.no_motion, "Do not measure or undo motion between frames");
+  sub.add_option("--smoothing-mm", o.smoothing_mm, "Gaussian smoothing of the signal on the chart, mm")->capture_default_str();
+  sub.add_option("--thresholds-kpa", o.thresholds_kpa, "Hotspot thresholds, kPa")->delimiter(',')->capture_default_str();
+  sub.add_option("--reference-uv-mm", o.reference_uv, "Centre u,v (chart mm) of an unpressed reference disk (default: automatic)")
+      ->delimiter(',')->expected(2);
+  sub.add_option("--reference-radius-mm", o.reference_radius_mm, "Radius of the reference disk, mm")->capture_default_str();
+  sub.add_option("--min-hotspot-area-mm2", o.min_area_mm2, "Smaller hotspots are dropped, mm²")->capture_default_str();
+  sub.add_option("--texel-mm", o.texel_mm, "Texel size of the chart grid, mm")->capture_default_str();
+  sub.add_flag("--no-html", o.no_html, "Do not write report.html");
+  sub.add_flag("--quiet", o.quiet, "No progress on stderr");
+  add_part_options(sub, o.part);
+}
+
+/// Everything an assessment needs before reading the captures.
+struct Prepared {
+  SceneFile scene;
+  std::unique_ptr<LoadedPart> part;
+  RefractionMap map;
+  InverseMap inverse;
+  std::optional<PressureCalibration> calibration;
+  std::vector<std::string> notes;
+  std::string cache;
+  AssessmentOptions options;
+  CaptureSources sources;
+  AssessmentScene view() const {
+    return {&part->mesh, &part->contact, &*part->chart, &part->camera, part->cam_from_part, &map, &inverse};
+  }
+};
+
+/// Reads the scene (the command line wins), checks the options, loads and
+/// traces the part, reads the calibration.
+std::unique_ptr<Prepared> prepare(AssessOpts& o, const CLI::App& sub) {
+  auto p = std::make_unique<Prepared>();
+  p->scene = read_scene(o.scene);
+  const SceneFile& sc = p->scene;
+  take_scene_part_options(sc, sub, o.part);
+  read_assess_sections(sc, sub, o);
+  if (o.out.empty()) o.out = (sc.path.parent_path() / "out").string();
+  if (o.window_frames < 1) throw InputError(o.scene, "captures.window_frames", "must be at least 1 frame");
+  check_positive("--max-motion-px", o.max_motion_px);
+  check_positive("--texel-mm", o.texel_mm);
+  check_positive("--min-hotspot-area-mm2", o.min_area_mm2);
+  check_positive("--reference-radius-mm", o.reference_radius_mm);
+  if (!(std::isfinite(o.smoothing_mm) && o.smoothing_mm >= 0)) throw InputError("", "--smoothing-mm", "must be >= 0");
+  for (double t : o.thresholds_kpa) check_positive("--thresholds-kpa", t);
+  if (!o.both.empty() && (!o.baseline.empty() || !o.worn.empty()))
+    throw InputError(o.scene, "captures", "give either 'both' or 'baseline' and 'worn', not all three");
+  if (o.both.empty() && (o.baseline.empty() || o.worn.empty()))
+    throw InputError(o.scene, "captures", "a phase is missing: give 'baseline' (not worn) and 'worn', or 'both'",
+                     "see the scene file format in README.md");
+  if (!o.quiet) std::cerr << "clearfit assess: loading the part and tracing the refraction map\n";
+  p->part = load_part_scene(o.part, true, std::cerr);
+  p->map = compute_part_map(*p->part, o.part, &p->cache);
+  InverseMapOptions iopt;
+  iopt.texel_mm = o.texel_mm;
+  iopt.uv_min = p->part->chart->uv_min;
+  iopt.uv_max = p->part->chart->uv_max;
+  iopt.compute_errors = false;
+  p->inverse = compute_inverse_map(p->map, iopt, &p->part->contact);
+  if (!o.quiet)
+    std::cerr << "  map: " << p->map.stats.by_status[0] << " pixels see the skin (" << fmt(100 * p->map.stats.coverage)
+              << " %), cache " << p->cache << "; chart " << p->inverse.width << " x " << p->inverse.height << " texels of "
+              << fmt(o.texel_mm, 3) << " mm\n";
+  if (!o.calibration.empty()) {
+    p->calibration = read_pressure_calibration(o.calibration);
+    p->notes = check_calibration_matches(*p->calibration, o.person, format_intrinsics_hash(p->part->camera.intrinsics_hash()));
+  }
+  AssessmentOptions& ao = p->options;
+  ao.window_frames = o.window_frames;
+  ao.compensate_motion = !o.no_motion;
+  ao.max_motion_px = o.max_motion_px;
+  ao.blanching.smoothing_mm = o.smoothing_mm;
+  if (!o.reference_uv.empty()) ao.blanching.reference_uv_mm = Vec2(o.reference_uv[0], o.reference_uv[1]);
+  ao.blanching.reference_radius_mm = o.reference_radius_mm;
+  ao.thresholds_kpa = o.thresholds_kpa;
+  ao.min_hotspot_area_mm2 = o.min_area_mm2;
+  p->sources = {o.baseline, o.worn, o.both};
+  return p;
+}
+
+/// Progress lines on stderr: "  stage 10% 20% ...".
+std::function<void(const std::string&, int, int)> progress_printer(bool quiet) {
+  auto last_stage = std::make_shared<std::string>();
+  auto last_percent = std::make_shared<int>(-1);
+  return [=](const std::string& stage, int done, int total) {
+    if (quiet) return;
+    if (stage != *last_stage) {
+      if (!last_stage->empty()) std::cerr << "\n";
+      *last_stage = stage;
+      *last_percent = -1;
+      std::cerr << "  " << stage << std::flush;
+    }
+    if (total > 0) {
+      const int percent = 100 * done / total;
+      if (percent / 10 != *last_percent / 10) std::cerr << " " << percent << "%" << std::flush;
+      *last_percent = percent;
+    }
+  };
 }
 
 }  // namespace
@@ -127,102 +239,21 @@ Run add_assess(CLI::App& app) {
   auto o = std::make_shared<AssessOpts>();
   CLI::App* sub = app.add_subcommand("assess", "The fit assessment: where and how hard the part presses, from a not-worn and a worn capture");
   sub->add_option("scene", o->scene, "Scene file (YAML): part, camera, captures, calibration, outputs")->required();
-  sub->add_option("--out", o->out, "Output folder (default: the scene's outputs.folder, else out/ beside the scene)");
-  sub->add_option("--baseline", o->baseline, "Not-worn capture: a video or a folder of images");
-  sub->add_option("--worn", o->worn, "Worn capture: a video or a folder of images");
-  sub->add_option("--both", o->both, "One capture holding the baseline and then the press (split automatically)");
-  sub->add_option("--calibration", o->calibration, "Per-person pressure calibration (from clearfit calibrate-pressure)");
-  sub->add_option("--person", o->person, "Who wears the part (checked against the calibration)");
-  sub->add_option("--window-frames", o->window_frames, "Frames averaged per phase")->capture_default_str();
-  sub->add_option("--max-motion-px", o->max_motion_px, "Motion beyond this is refused, px")->capture_default_str();
-  sub->add_flag("--no-motion-compensation", o->no_motion, "Do not measure or undo motion between frames");
-  sub->add_option("--smoothing-mm", o->smoothing_mm, "Gaussian smoothing of the signal on the chart, mm")->capture_default_str();
-  sub->add_option("--thresholds-kpa", o->thresholds_kpa, "Hotspot thresholds, kPa")->delimiter(',')->capture_default_str();
-  sub->add_option("--reference-uv-mm", o->reference_uv, "Centre u,v (chart mm) of an unpressed reference disk (default: automatic)")
-      ->delimiter(',')->expected(2);
-  sub->add_option("--reference-radius-mm", o->reference_radius_mm, "Radius of the reference disk, mm")->capture_default_str();
-  sub->add_option("--min-hotspot-area-mm2", o->min_area_mm2, "Smaller hotspots are dropped, mm²")->capture_default_str();
-  sub->add_option("--texel-mm", o->texel_mm, "Texel size of the chart grid, mm")->capture_default_str();
-  sub->add_flag("--no-html", o->no_html, "Do not write report.html");
-  sub->add_flag("--quiet", o->quiet, "No progress on stderr");
-  add_part_options(*sub, o->part);
+  add_assess_options(*sub, *o);
 
   return [o, sub]() {
     const auto t0 = std::chrono::steady_clock::now();
-    const SceneFile sc = read_scene(o->scene);
-    take_scene_part_options(sc, *sub, o->part);
-    read_assess_sections(sc, *sub, *o);
-    if (o->out.empty()) o->out = (sc.path.parent_path() / "out").string();
-    if (o->window_frames < 1) throw InputError(o->scene, "captures.window_frames", "must be at least 1 frame");
-    check_positive("--max-motion-px", o->max_motion_px);
-    check_positive("--texel-mm", o->texel_mm);
-    check_positive("--min-hotspot-area-mm2", o->min_area_mm2);
-    check_positive("--reference-radius-mm", o->reference_radius_mm);
-    if (!(std::isfinite(o->smoothing_mm) && o->smoothing_mm >= 0)) throw InputError("", "--smoothing-mm", "must be >= 0");
-    for (double t : o->thresholds_kpa) check_positive("--thresholds-kpa", t);
-    if (!o->both.empty() && (!o->baseline.empty() || !o->worn.empty()))
-      throw InputError(o->scene, "captures", "give either 'both' or 'baseline' and 'worn', not all three");
-    if (o->both.empty() && (o->baseline.empty() || o->worn.empty()))
-      throw InputError(o->scene, "captures", "a phase is missing: give 'baseline' (not worn) and 'worn', or 'both'",
-                       "see the scene file format in README.md");
+    const auto p = prepare(*o, *sub);
     StagedFolder staged(o->out);
-    auto say = [&](const std::string& line) {
-      if (!o->quiet) std::cerr << line << std::flush;
-    };
-
-    say("clearfit assess: loading the part and tracing the refraction map\n");
-    const auto part = load_part_scene(o->part, true, std::cerr);
-    std::string cache;
-    const RefractionMap map = compute_part_map(*part, o->part, &cache);
-    InverseMapOptions iopt;
-    iopt.texel_mm = o->texel_mm;
-    iopt.uv_min = part->chart->uv_min;
-    iopt.uv_max = part->chart->uv_max;
-    iopt.compute_errors = false;
-    const InverseMap inverse = compute_inverse_map(map, iopt, &part->contact);
-    say("  map: " + std::to_string(map.stats.by_status[0]) + " pixels see the skin (" + fmt(100 * map.stats.coverage) +
-        " %), cache " + cache + "; chart " + std::to_string(inverse.width) + " x " + std::to_string(inverse.height) + " texels of " +
-        fmt(o->texel_mm, 3) + " mm\n");
-
-    std::optional<PressureCalibration> calibration;
-    std::vector<std::string> notes;
-    if (!o->calibration.empty()) {
-      calibration = read_pressure_calibration(o->calibration);
-      notes = check_calibration_matches(*calibration, o->person,
-                                        format_intrinsics_hash(part->camera.intrinsics_hash()));
-    }
-
-    AssessmentOptions ao;
-    ao.window_frames = o->window_frames;
-    ao.compensate_motion = !o->no_motion;
-    ao.max_motion_px = o->max_motion_px;
-    ao.blanching.smoothing_mm = o->smoothing_mm;
-    if (!o->reference_uv.empty()) ao.blanching.reference_uv_mm = Vec2(o->reference_uv[0], o->reference_uv[1]);
-    ao.blanching.reference_radius_mm = o->reference_radius_mm;
-    ao.thresholds_kpa = o->thresholds_kpa;
-    ao.min_hotspot_area_mm2 = o->min_area_mm2;
-    int last_percent = -1;
-    std::string last_stage;
-    ao.progress = [&](const std::string& stage, int done, int total) {
-      if (o->quiet) return;
-      if (stage != last_stage) {
-        if (!last_stage.empty()) std::cerr << "\n";
-        last_stage = stage;
-        last_percent = -1;
-        std::cerr << "  " << stage << std::flush;
-      }
-      if (total > 0) {
-        const int percent = 100 * done / total;
-        if (percent / 10 != last_percent / 10) std::cerr << " " << percent << "%" << std::flush;
-        last_percent = percent;
-      } else if (done > 0 && done % 50 == 0) {
-        std::cerr << " " << done << std::flush;
-      }
-    };
-    CaptureSources sources{o->baseline, o->worn, o->both};
-    AssessmentScene scene{&part->mesh, &part->contact, &*part->chart, &part->camera, part->cam_from_part, &map, &inverse};
-    const Assessment a = assess_captures(scene, sources, calibration, ao);
+    p->options.progress = progress_printer(o->quiet);
+    const AssessmentScene scene = p->view();
+    const LoadedPart* part = p->part.get();
+    const RefractionMap& map = p->map;
+    const SceneFile& sc = p->scene;
+    const auto& calibration = p->calibration;
+    const Assessment a = assess_captures(scene, p->sources, calibration, p->options);
     if (!o->quiet) std::cerr << "\n";
+    const auto& notes = p->notes;
 
     AssessmentContext ctx;
     ctx.clearfit_version = CLEARFIT_VERSION;
@@ -286,5 +317,157 @@ Run add_assess(CLI::App& app) {
 }
 
 static const Registration registered{"assess", 30, add_assess};
+
+namespace {
+
+/// Seconds to decode every frame of a capture, nothing else (the same reader).
+double bare_decode_s(const fs::path& source, int* frames) {
+  const auto t = std::chrono::steady_clock::now();
+  FrameReader reader(source);
+  cv::Mat frame;
+  int n = 0;
+  while (reader.read(frame)) ++n;
+  *frames = n;
+  return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+}
+
+/// Accuracy of an assessment against a simulation's truth (truth.json and
+/// truth_pressure.npy written by clearfit simulate).
+nlohmann::json accuracy_against_truth(const Assessment& a, const fs::path& truth_dir, double range_kpa) {
+  std::ifstream in(truth_dir / "truth.json");
+  if (!in) throw InputError((truth_dir / "truth.json").string(), "", "not found", "give --truth the folder clearfit simulate wrote");
+  const nlohmann::json t = nlohmann::json::parse(in);
+  const npy::Float32Array tp = npy::read_float32(truth_dir / "truth_pressure.npy");
+  const auto& grid = t.at("chart_grid");
+  ChartField truth;
+  truth.grid.width = grid.at("width");
+  truth.grid.height = grid.at("height");
+  truth.grid.texel_mm = grid.at("texel_mm");
+  truth.grid.uv_origin = Vec2(grid.at("uv_origin_mm")[0], grid.at("uv_origin_mm")[1]);
+  truth.value = tp.values;
+  if (tp.values.size() != truth.grid.size())
+    throw InputError((truth_dir / "truth_pressure.npy").string(), "shape", "does not match truth.json's chart_grid");
+  const ChartGrid& g = a.signal.y.grid;
+  double se = 0;
+  long long n = 0, pos = 0, tp_n = 0, neg = 0, fp = 0;
+  for (int j = 0; j < g.height; ++j)
+    for (int i = 0; i < g.width; ++i) {
+      const auto k = g.index(i, j);
+      if (!std::isfinite(a.signal.y.value[k]) || a.raster.face[k] < 0) continue;
+      const float tv = truth.sample(g.uv(i, j));
+      if (!std::isfinite(tv)) continue;
+      float est = a.calibrated ? a.pressure.value[k] : 0.f;
+      if (a.calibrated && a.pressure_status[k] == static_cast<std::uint8_t>(PressureStatus::below_detection)) est = 0.f;
+      if (!std::isfinite(est)) continue;
+      se += (est - tv) * (est - tv);
+      ++n;
+      const bool detected = a.calibrated ? est >= 5.5f : false;
+      if (tv >= 5.5f) ++pos, tp_n += detected;
+      if (tv < 4.3f) ++neg, fp += detected;
+    }
+  nlohmann::json hotspots = nlohmann::json::array();
+  for (const auto& th : t.at("hotspots")) {
+    if (th.at("centroid_part_mm").is_null()) continue;
+    const Vec3 c(th["centroid_part_mm"][0], th["centroid_part_mm"][1], th["centroid_part_mm"][2]);
+    const Hotspot* best = nullptr;
+    for (const Hotspot& h : a.hotspots)
+      if (h.threshold == a.thresholds.front() && h.centre_of_pressure_mm.allFinite() &&
+          (!best || (h.centre_of_pressure_mm - c).norm() < (best->centre_of_pressure_mm - c).norm()))
+        best = &h;
+    double area55 = 0;
+    if (best && a.calibrated)
+      for (const Hotspot& h : a.hotspots)
+        if (h.threshold == 5.5 && (h.centre_of_pressure_mm - best->centre_of_pressure_mm).norm() < 3.0) area55 += h.area_mm2;
+    hotspots.push_back({{"truth_centroid_mm", {c.x(), c.y(), c.z()}},
+                        {"truth_peak_kpa", th.value("peak_kpa", 0.0)},
+                        {"truth_area_5_5_mm2", th.value("area_ge_5_5_kpa_mm2", 0.0)},
+                        {"found", best != nullptr},
+                        {"centroid_error_mm", best ? nlohmann::json((best->centre_of_pressure_mm - c).norm()) : nlohmann::json(nullptr)},
+                        {"peak_kpa", best && a.calibrated ? nlohmann::json(best->peak) : nlohmann::json(nullptr)},
+                        {"area_5_5_mm2", best && a.calibrated ? nlohmann::json(area55) : nlohmann::json(nullptr)}});
+  }
+  const double rmse = n ? std::sqrt(se / n) : 0;
+  return {{"texels_compared", n},
+          {"rmse_kpa", a.calibrated ? nlohmann::json(rmse) : nlohmann::json(nullptr)},
+          {"rmse_percent_of_range", a.calibrated ? nlohmann::json(100 * rmse / range_kpa) : nlohmann::json(nullptr)},
+          {"sensitivity_5_5", pos && a.calibrated ? nlohmann::json(static_cast<double>(tp_n) / pos) : nlohmann::json(nullptr)},
+          {"false_alarm_rate_5_5", neg && a.calibrated ? nlohmann::json(static_cast<double>(fp) / neg) : nlohmann::json(nullptr)},
+          {"hotspots", hotspots}};
+}
+
+}  // namespace
+
+Run add_bench_assess(CLI::App& app) {
+  auto o = std::make_shared<AssessOpts>();
+  auto truth = std::make_shared<std::string>();
+  auto json_out = std::make_shared<std::string>();
+  CLI::App* bench = app.get_subcommand("bench");
+  CLI::App* sub = bench->add_subcommand("assess", "The assessment's throughput against a bare decode of the same captures, "
+                                                  "and its accuracy against a simulation's truth");
+  sub->add_option("scene", o->scene, "Scene file (YAML) with captures")->required();
+  sub->add_option("--truth", *truth, "Folder with truth.json and truth_pressure.npy (clearfit simulate); default: the captures' folder if it has them");
+  sub->add_option("--json", *json_out, "Also write the figures as JSON");
+  add_assess_options(*sub, *o);
+  return [o, sub, truth, json_out]() {
+    o->quiet = true;
+    const auto p = prepare(*o, *sub);
+    // Bare decode of the same captures, then the assessment (map from the cache).
+    int frames = 0;
+    double decode_s = 0;
+    for (const auto& src : {p->sources.baseline, p->sources.worn, p->sources.both})
+      if (!src.empty()) {
+        int n = 0;
+        decode_s += bare_decode_s(src, &n);
+        frames += n;
+      }
+    const auto t = std::chrono::steady_clock::now();
+    const Assessment a = assess_captures(p->view(), p->sources, p->calibration, p->options);
+    const double assess_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
+    const CameraModel& cam = p->part->camera;
+    nlohmann::json r = {{"schema", "clearfit.bench-assess/1"},
+                        {"image", {cam.width, cam.height}},
+                        {"frames", frames},
+                        {"bare_decode_fps", frames / decode_s},
+                        {"assessment_fps", frames / assess_s},
+                        {"ratio_to_decode", decode_s / assess_s},
+                        {"per_frame_work_fps", a.work_ms > 0 ? frames / (a.work_ms / 1000) : 0.0},
+                        {"per_frame_work_ms", frames ? a.work_ms / frames : 0.0},
+                        {"assessment_s", assess_s}};
+    fs::path truth_dir = *truth;
+    if (truth_dir.empty()) {
+      const fs::path first = !p->sources.both.empty() ? p->sources.both : p->sources.baseline;
+      if (fs::exists(first.parent_path() / "truth.json")) truth_dir = first.parent_path();
+    }
+    const double range = p->calibration ? std::max(p->calibration->p_max_kpa, 1.0) : 30.0;
+    if (!truth_dir.empty()) r["accuracy"] = accuracy_against_truth(a, truth_dir, range);
+    std::cout << "clearfit bench assess: " << fs::path(o->scene).filename().string() << " (" << cam.width << "x" << cam.height << ", "
+              << frames << " frames)\n";
+    std::cout << "  bare decode        " << fmt(frames / decode_s, 1) << " frames/s\n";
+    std::cout << "  whole assessment   " << fmt(frames / assess_s, 1) << " frames/s = " << fmt(100 * decode_s / assess_s, 0)
+              << " % of the bare decode rate (target >= 80 %)\n";
+    std::cout << "  per-frame work     " << fmt(r["per_frame_work_ms"].get<double>(), 2) << " ms/frame = "
+              << fmt(r["per_frame_work_fps"].get<double>(), 0) << " frames/s with decode excluded (target >= 240)\n";
+    if (r.contains("accuracy")) {
+      const auto& acc = r["accuracy"];
+      if (!acc["rmse_kpa"].is_null())
+        std::cout << "  pressure RMSE      " << fmt(acc["rmse_kpa"].get<double>(), 2) << " kPa = " << fmt(acc["rmse_percent_of_range"].get<double>(), 1)
+                  << " % of the calibrated range " << fmt(range, 1) << " kPa (target <= 10 %)\n";
+      if (!acc["sensitivity_5_5"].is_null())
+        std::cout << "  >= 5.5 kPa         sensitivity " << fmt(100 * acc["sensitivity_5_5"].get<double>(), 1) << " % (target >= 90 %), false alarms "
+                  << fmt(100 * acc["false_alarm_rate_5_5"].get<double>(), 2) << " % of texels below 4.3 kPa\n";
+      for (const auto& h : acc["hotspots"])
+        std::cout << "  hotspot at (" << fmt(h["truth_centroid_mm"][0].get<double>(), 2) << ", " << fmt(h["truth_centroid_mm"][1].get<double>(), 2)
+                  << ", " << fmt(h["truth_centroid_mm"][2].get<double>(), 2) << ") mm: "
+                  << (h["found"].get<bool>() ? "centroid error " + fmt(h["centroid_error_mm"].get<double>(), 3) + " mm (target <= 0.3)" : std::string("not found"))
+                  << (h["peak_kpa"].is_null() ? "" : ", peak " + fmt(h["peak_kpa"].get<double>()) + " kPa (truth " + fmt(h["truth_peak_kpa"].get<double>()) + ")")
+                  << (h["area_5_5_mm2"].is_null() ? "" : ", area >= 5.5 kPa " + fmt(h["area_5_5_mm2"].get<double>(), 2) + " mm² (truth " + fmt(h["truth_area_5_5_mm2"].get<double>(), 2) + ")")
+                  << "\n";
+    }
+    if (!json_out->empty()) write_file_atomically(*json_out, r.dump(2) + "\n");
+    return 0;
+  };
+}
+
+static const Registration registered_bench{"bench assess", 91, add_bench_assess};
 
 }  // namespace clearfit::cli

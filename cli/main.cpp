@@ -33,11 +33,21 @@ int main(int argc, char** argv) {
   app.failure_message(CLI::FailureMessage::help);
   app.set_version_flag("--version", std::string("clearfit ") + CLEARFIT_VERSION);
   std::map<CLI::App*, clearfit::cli::Run> runs;
+  // Every subcommand a registration adds (nested ones too, e.g. "bench assess") runs its Run.
+  auto all_subcommands = [](CLI::App& root) {
+    std::vector<CLI::App*> out, todo{&root};
+    while (!todo.empty()) {
+      CLI::App* a = todo.back();
+      todo.pop_back();
+      for (CLI::App* s : a->get_subcommands({})) out.push_back(s), todo.push_back(s);
+    }
+    return out;
+  };
   auto add = [&](clearfit::cli::AddCommand make) {
-    const auto before = app.get_subcommands({});
+    const auto before = all_subcommands(app);
     clearfit::cli::Run run = make(app);
-    for (CLI::App* sub : app.get_subcommands({}))
-      if (std::find(before.begin(), before.end(), sub) == before.end()) runs[sub] = std::move(run);
+    for (CLI::App* sub : all_subcommands(app))
+      if (std::find(before.begin(), before.end(), sub) == before.end()) runs[sub] = run;
   };
   for (const auto& command : clearfit::cli::registered_commands()) add(command.add);
 
@@ -47,8 +57,16 @@ int main(int argc, char** argv) {
     return app.exit(e) == 0 ? 0 : 2;
   }
   try {
-    for (CLI::App* sub : app.get_subcommands())
-      if (auto it = runs.find(sub); it != runs.end()) return it->second();
+    // The deepest parsed subcommand that has a Run.
+    CLI::App* chosen = nullptr;
+    for (CLI::App* level = &app; level;) {
+      CLI::App* next = nullptr;
+      for (CLI::App* sub : level->get_subcommands())
+        if (sub->parsed()) next = sub;
+      if (next && runs.count(next)) chosen = next;
+      level = next;
+    }
+    if (chosen) return runs[chosen]();
     std::cerr << "clearfit: error: a subcommand is required\n" << app.help();
     return 2;
   } catch (const clearfit::InputError& e) {

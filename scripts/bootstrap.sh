@@ -32,6 +32,16 @@ install_deps() {
   $sudo apt-get install -y -qq --no-install-recommends "${missing[@]}"
 }
 
+install_web() {  # npm packages for the report viewer and the browser/glTF tests (web/package-lock.json)
+  echo "== npm packages (web/package-lock.json)"
+  if ! command -v npm > /dev/null; then  # the machine's Node.js normally brings npm; else Debian's
+    local sudo=""
+    [ "$(id -u)" -eq 0 ] || sudo="sudo"
+    DEBIAN_FRONTEND=noninteractive $sudo apt-get install -y -qq nodejs npm
+  fi
+  npm ci --prefix web --no-audit --no-fund --loglevel=error
+}
+
 build() {  # build DIR [extra cmake args...]
   local dir=$1; shift
   echo "== configuring and building in $dir"
@@ -46,9 +56,10 @@ run_tests() {  # run_tests DIR
 }
 
 case "${1:-}" in
-  deps) install_deps ;;
+  deps) install_deps; install_web ;;
   sample)
     install_deps
+    install_web
     build build
     echo "== clearfit mesh-info on the bundled wristband sample"
     ./build/cli/clearfit mesh-info samples/wristband/wristband.obj --contact-group contact
@@ -58,11 +69,13 @@ case "${1:-}" in
     ;;
   test)
     install_deps
+    install_web
     build build
     run_tests build
     ;;
   asan)
     install_deps
+    install_web
     build build-asan -DCLEARFIT_SANITIZE=ON -DCLEARFIT_BUILD_BENCHMARKS=OFF
     ASAN_OPTIONS=detect_leaks=1 CLEARFIT_RAY_TEST_SCALE=0.1 run_tests build-asan
     ;;

@@ -15,4 +15,15 @@ namespace clearfit::npy {
 void write_float32(const std::filesystem::path& path, const std::vector<std::size_t>& shape,
                    const std::function<void(std::size_t row, float* out)>& fill_row);
 
+
+/// A float32 array read from a .npy file.
+struct Float32Array {
+  std::vector<std::size_t> shape;
+  std::vector<float> values;  ///< C order
+};
+/// Reads a NumPy .npy file (format 1.x or 2.x) holding little-endian float32
+/// in C order. Throws InputError naming the file and what is wrong (not .npy,
+/// another dtype, Fortran order, truncated).
+Float32Array read_float32(const std::filesystem::path& path);
+
 }  // namespace clearfit::npy
