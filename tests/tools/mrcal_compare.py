@@ -1,0 +1,71 @@
+#!/usr/bin/python3
+# Compares a clearfit .cameramodel with one written by mrcal-calibrate-cameras,
+# using mrcal's own Python (run with /usr/bin/python3). Prints one JSON object:
+#   ours:    lensmodel, intrinsics, imagersize as mrcal.cameramodel reads them
+#   mrcal:   intrinsics, rms_px (inlier corners, per coordinate), outliers,
+#            missing (corners given as missing)
+#   diff_px: mrcal.projection_diff(ours, mrcal) on a gx x gy grid (row-major),
+#            implied rotation fitted by mrcal, no uncertainty weighting
+#   uncertainty_px: mrcal.projection_uncertainty of mrcal's model,
+#            worst-direction stdev, at the centres of the gx x gy cells, points
+#            at --distance, with --sigma as the observed pixel uncertainty
+#   uncertainty_ours_px (with --solution S.json {intrinsics, frames (rt
+#            cam_from_board per view), warp, weights (per corner, < 0 unused)}):
+#            the same, computed by mrcal's Python on OUR problem at OUR solution
+#            (mrcal's optimization_inputs with our state and weights swapped in)
+import argparse, json, sys
+import numpy as np
+import mrcal
+
+p = argparse.ArgumentParser()
+p.add_argument('--ours', required=True)
+p.add_argument('--mrcal', required=True)
+p.add_argument('--grid', type=int, nargs=2, default=(16, 12))
+p.add_argument('--distance', type=float, required=True)
+p.add_argument('--sigma', type=float, required=True)
+p.add_argument('--solution')
+a = p.parse_args()
+
+ours = mrcal.cameramodel(a.ours)
+ref = mrcal.cameramodel(a.mrcal)
+gx, gy = a.grid
+W, H = ref.imagersize()
+
+oi = ref.optimization_inputs()
+x = mrcal.optimizer_callback(**oi)[1]
+nb = mrcal.num_measurements_boards(**oi)
+obs = oi['observations_board']
+inlier = obs[..., 2].ravel() >= 0
+xb = x[:nb].reshape(-1, 2)[inlier]
+rms = float(np.sqrt(np.mean(xb * xb)))
+
+diff = mrcal.projection_diff((ours, ref), gridn_width=gx, gridn_height=gy, use_uncertainties=False)[0]
+
+qx = (np.arange(gx) + 0.5) * W / gx - 0.5
+qy = (np.arange(gy) + 0.5) * H / gy - 0.5
+q = np.array([(u, v) for v in qy for u in qx])
+
+def uncertainty(model):
+    v = mrcal.unproject(q, *model.intrinsics(), normalize=True)
+    return np.asarray(mrcal.projection_uncertainty(v * a.distance, model=model, what='worstdirection-stdev',
+                                                   observed_pixel_uncertainty=a.sigma)).ravel().tolist()
+
+out_extra = {}
+if a.solution:
+    sol = json.load(open(a.solution))
+    oi2 = dict(oi)
+    oi2['intrinsics'] = np.array([sol['intrinsics']], dtype=float)
+    oi2['frames_rt_toref'] = np.array(sol['frames'], dtype=float)
+    oi2['calobject_warp'] = np.array(sol['warp'], dtype=float)
+    obs2 = obs.copy()
+    obs2[..., 2] = np.array(sol['weights'], dtype=float).reshape(obs.shape[:-1])
+    oi2['observations_board'] = obs2
+    oi2['do_apply_outlier_rejection'] = False
+    out_extra['uncertainty_ours_px'] = uncertainty(mrcal.cameramodel(optimization_inputs=oi2, icam_intrinsics=0))
+
+json.dump({**out_extra,'ours': {'lensmodel': ours.intrinsics()[0], 'intrinsics': ours.intrinsics()[1].tolist(),
+                    'imagersize': [int(s) for s in ours.imagersize()]},
+           'mrcal': {'intrinsics': ref.intrinsics()[1].tolist(), 'rms_px': rms,
+                     'inliers': int(np.count_nonzero(inlier)), 'corners': int(inlier.size)},
+           'diff_px': np.asarray(diff).ravel().tolist(),
+           'uncertainty_px': uncertainty(ref)}, sys.stdout)
