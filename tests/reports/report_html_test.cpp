@@ -1,0 +1,244 @@
+// report.html from a hand-made assessment folder: the hotspot table matches
+// report.json, text is escaped, odd reports (no hotspots, no calibration,
+// missing files) still give a page, bad folders are named.
+#include <clearfit/error.hpp>
+#include <clearfit/reports/report_html.hpp>
+#include <gtest/gtest.h>
+#include <tiny_gltf.h>
+
+#include <regex>
+
+#include "report_fixture.hpp"
+
+// Declared by tiny_gltf.h only in its implementation part; libtinygltf.so defines it.
+namespace tinygltf {
+std::string base64_decode(std::string const& encoded);
+}
+
+namespace clearfit {
+namespace {
+
+using report_test::FixtureOptions;
+using report_test::make_assessment_folder;
+namespace fs = std::filesystem;
+using json = nlohmann::json;
+
+std::string slurp(const fs::path& p) {
+  std::ifstream in(p, std::ios::binary);
+  std::ostringstream s;
+  s << in.rdbuf();
+  return s.str();
+}
+
+std::size_t count(const std::string& hay, const std::string& needle) {
+  std::size_t n = 0;
+  for (std::size_t pos = hay.find(needle); pos != std::string::npos; pos = hay.find(needle, pos + 1)) ++n;
+  return n;
+}
+
+// Whether the page's text (between <main> and </main>, images left out) shows a NaN or an infinity.
+bool shows_nan(const std::string& html) {
+  const std::size_t a = html.find("<main>"), b = html.find("</main>");
+  const std::string text = std::regex_replace(html.substr(a, b - a), std::regex("data:[^\"]*"), "");
+  return std::regex_search(text, std::regex("(^|[^a-z])(nan|inf)([^a-z]|$)", std::regex::icase));
+}
+
+class ReportHtml : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    const auto* info = ::testing::UnitTest::GetInstance()->current_test_info();
+    dir_ = fs::temp_directory_path() / (std::string("clearfit_report_html_") + info->name() + "_" + std::to_string(::getpid()));
+    fs::remove_all(dir_);
+  }
+  void TearDown() override {
+    if (!HasFailure()) fs::remove_all(dir_);
+  }
+  std::string generate(const FixtureOptions& o, json* report = nullptr, reports::HtmlReportResult* result = nullptr) {
+    const json r = make_assessment_folder(dir_, o);
+    if (report) *report = r;
+    const auto res = reports::write_report_html(dir_);
+    if (result) *result = res;
+    EXPECT_EQ(res.html, dir_ / "report.html");
+    return slurp(res.html);
+  }
+  fs::path dir_;
+};
+
+std::string fixed2(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.2f", v);
+  return buf;
+}
+
+TEST(HtmlEscape, EscapesEveryMarkupCharacter) {
+  EXPECT_EQ(reports::html_escape("a<b>&\"c'"), "a&lt;b&gt;&amp;&quot;c&#39;");
+  EXPECT_EQ(reports::html_escape("plain text, 12 kPa"), "plain text, 12 kPa");
+}
+
+TEST_F(ReportHtml, HotspotTableMatchesReportJson) {
+  json report;
+  const std::string html = generate({}, &report);
+  ASSERT_EQ(report["hotspots"].size(), 2u);
+  const std::regex row_re(R"re(<tr data-hotspot="(\d+)">(.*?)</tr>)re");
+  const std::regex cell_re(R"re(<td data-key="([a-z_0-9]+)" data-value="([^"]*)">([^<]*)</td>)re");
+  int rows = 0;
+  for (auto it = std::sregex_iterator(html.begin(), html.end(), row_re); it != std::sregex_iterator(); ++it, ++rows) {
+    const int id = std::stoi((*it)[1]);
+    const json& h = report["hotspots"][id - 1];
+    ASSERT_EQ(h["id"], id);
+    const std::string cells = (*it)[2];
+    std::map<std::string, std::pair<std::string, std::string>> by_key;
+    for (auto c = std::sregex_iterator(cells.begin(), cells.end(), cell_re); c != std::sregex_iterator(); ++c)
+      by_key[(*c)[1]] = {(*c)[2], (*c)[3]};
+    for (const char* key : {"threshold_kpa", "peak_kpa", "peak_sigma_kpa", "mean_kpa", "mean_sigma_kpa"}) {
+      ASSERT_TRUE(by_key.count(key)) << key;
+      EXPECT_DOUBLE_EQ(std::stod(by_key[key].first), h[key].get<double>()) << key;
+      EXPECT_EQ(by_key[key].second, fixed2(h[key].get<double>())) << key;
+    }
+    char area[32];
+    std::snprintf(area, sizeof area, "%.1f", h["area_mm2"].get<double>());
+    EXPECT_EQ(by_key["area_mm2"].second, area);
+    EXPECT_EQ(json::parse(by_key["centroid_mm"].first), h["centroid_mm"]);
+  }
+  EXPECT_EQ(rows, 2);
+  // One clickable marker and one info box per hotspot; two views (pressure, signal) with a toggle.
+  EXPECT_EQ(count(html, "slot=\"hotspot-"), 2u);
+  EXPECT_EQ(count(html, "class=\"hotspot-info\" data-hotspot-info="), 2u);
+  EXPECT_EQ(count(html, "class=\"clearfit-model\""), 2u);
+  EXPECT_NE(html.find("<button type=\"button\" data-view=\"signal\">"), std::string::npos);
+  EXPECT_NE(html.find("the study's linear fit reached 0.439"), std::string::npos);
+  EXPECT_NE(html.find("2 hotspots (thresholds 4.3 and 5.5 kPa); the strongest is #1: 20.0 &plusmn; 1.3 kPa"), std::string::npos);
+  EXPECT_NE(html.find("motion during the worn capture: 0.8 px, compensated"), std::string::npos);
+  EXPECT_FALSE(shows_nan(html)) << "a NaN was printed";
+  // Self-contained: no external URL is referenced.
+  EXPECT_EQ(html.find("src=\"http"), std::string::npos);
+  EXPECT_EQ(html.find("href=\"http"), std::string::npos);
+  // No temporary file is left beside it.
+  for (const auto& e : fs::directory_iterator(dir_)) EXPECT_EQ(e.path().filename().string().find(".tmp"), std::string::npos) << e.path();
+}
+
+TEST_F(ReportHtml, EscapesMaliciousText) {
+  const std::string plain = generate({});
+  FixtureOptions o;
+  o.odd_text = "<script>alert(\"x\")</script><img src=x onerror=alert(1)>&'";
+  const std::string html = generate(o);
+  EXPECT_EQ(html.find("<img src=x"), std::string::npos);
+  EXPECT_EQ(html.find("<script>alert"), std::string::npos);
+  EXPECT_NE(html.find("&lt;script&gt;alert(&quot;x&quot;)&lt;/script&gt;&lt;img src=x onerror=alert(1)&gt;&amp;&#39;"),
+            std::string::npos);
+  // The only <script> elements are the page's own, as for a plain report.
+  EXPECT_EQ(count(html, "<script"), count(plain, "<script"));
+  EXPECT_EQ(count(html, "</script"), count(plain, "</script"));
+}
+
+TEST_F(ReportHtml, NoHotspots) {
+  FixtureOptions o;
+  o.bumps = {{0, 0, 3, 3}};  // below the 5.5 kPa threshold
+  json report;
+  const std::string html = generate(o, &report);
+  ASSERT_TRUE(report["hotspots"].empty());
+  EXPECT_NE(html.find("id=\"no-hotspots\""), std::string::npos);
+  EXPECT_EQ(html.find("id=\"hotspot-table\""), std::string::npos);
+  EXPECT_EQ(count(html, "slot=\"hotspot-"), 0u);
+  EXPECT_NE(html.find("No hotspot above"), std::string::npos);
+}
+
+TEST_F(ReportHtml, SignalOnlyWithoutCalibration) {
+  FixtureOptions o;
+  o.calibrated = false;
+  json report;
+  const std::string html = generate(o, &report);
+  EXPECT_NE(html.find("id=\"no-calibration\""), std::string::npos);
+  EXPECT_NE(html.find("Regions of significant blanching"), std::string::npos);
+  EXPECT_NE(html.find("data-key=\"peak_signal\""), std::string::npos);
+  EXPECT_EQ(html.find("data-key=\"peak_kpa\""), std::string::npos);
+  // One view, the signal, and no toggle.
+  EXPECT_EQ(count(html, "class=\"clearfit-model\""), 1u);
+  EXPECT_NE(html.find("class=\"clearfit-model\" data-view=\"signal\""), std::string::npos);
+  EXPECT_EQ(html.find("class=\"toggle\""), std::string::npos);
+  EXPECT_FALSE(shows_nan(html));
+}
+
+// The signal view is heatmap.glb recoloured from _BLANCH: read it back from
+// the page and check its colours against the colormap directly.
+TEST_F(ReportHtml, SignalViewIsRecolouredFromBlanch) {
+  const std::string html = generate({});
+  const std::string open = "class=\"clearfit-model\" data-view=\"signal\">";
+  const std::size_t a = html.find(open);
+  ASSERT_NE(a, std::string::npos);
+  const std::size_t b = html.find("</script>", a);
+  const std::string glb = tinygltf::base64_decode(html.substr(a + open.size(), b - a - open.size()));
+  tinygltf::Model model;
+  tinygltf::TinyGLTF loader;
+  std::string err, warn;
+  ASSERT_TRUE(loader.LoadBinaryFromMemory(&model, &err, &warn, reinterpret_cast<const unsigned char*>(glb.data()),
+                                          static_cast<unsigned int>(glb.size())))
+      << err;
+  ASSERT_EQ(model.scenes.size(), 1u);  // one scene per view: model-viewer loads them all
+  EXPECT_EQ(model.scenes.at(model.defaultScene).name, "vertex_colors");
+  const tinygltf::Mesh& mesh = model.meshes.at(model.nodes.at(model.scenes[model.defaultScene].nodes[0]).mesh);
+  auto floats = [&](int accessor) {
+    const tinygltf::Accessor& acc = model.accessors[accessor];
+    const tinygltf::BufferView& bv = model.bufferViews[acc.bufferView];
+    const float* p = reinterpret_cast<const float*>(model.buffers[bv.buffer].data.data() + bv.byteOffset + acc.byteOffset);
+    return std::vector<float>(p, p + acc.count * tinygltf::GetNumComponentsInType(acc.type));
+  };
+  const auto colour = floats(mesh.primitives[0].attributes.at("COLOR_0"));
+  const auto blanch = floats(mesh.primitives[0].attributes.at("_BLANCH"));
+  const auto seen = floats(mesh.primitives[0].attributes.at("_SEEN"));
+  const Colormap& cm = Colormap::get("viridis");
+  const std::size_t top = std::max_element(blanch.begin(), blanch.end()) - blanch.begin();
+  const Eigen::Vector3f top_colour = cm.linear(1.0), grey = cm.no_data_linear(), low = cm.linear(0.0);
+  for (int c = 0; c < 3; ++c) EXPECT_FLOAT_EQ(colour[3 * top + c], top_colour[c]);
+  int unseen = 0, zero = 0;
+  for (std::size_t v = 0; v < seen.size(); ++v) {
+    if (seen[v] < 0.5f) {
+      ++unseen;
+      for (int c = 0; c < 3; ++c) ASSERT_FLOAT_EQ(colour[3 * v + c], grey[c]) << v;
+    } else if (blanch[v] == 0.0f) {
+      ++zero;
+      for (int c = 0; c < 3; ++c) ASSERT_FLOAT_EQ(colour[3 * v + c], low[c]) << v;
+    }
+  }
+  EXPECT_GT(unseen, 0);
+}
+
+TEST_F(ReportHtml, MissingImagesLeaveANote) {
+  FixtureOptions o;
+  o.write_pngs = false;
+  reports::HtmlReportResult result;
+  const std::string html = generate(o, nullptr, &result);
+  EXPECT_NE(html.find("skin_camera.png is missing"), std::string::npos);
+  EXPECT_EQ(html.find("data:image/png"), std::string::npos);
+  EXPECT_GE(result.notes.size(), 4u);
+}
+
+TEST_F(ReportHtml, BadFoldersAreNamed) {
+  fs::create_directories(dir_);
+  try {
+    reports::write_report_html(dir_);
+    FAIL() << "no error for a folder without report.json";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("report.json"), std::string::npos) << e.what();
+  }
+  std::ofstream(dir_ / "report.json") << R"({"schema": "clearfit.report/0"})";
+  try {
+    reports::write_report_html(dir_);
+    FAIL() << "no error for another schema";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("schema"), std::string::npos) << e.what();
+  }
+  EXPECT_FALSE(fs::exists(dir_ / "report.html"));
+  make_assessment_folder(dir_);
+  reports::HtmlReportOptions opt;
+  opt.assets_dir = dir_ / "no-assets-here";
+  try {
+    reports::write_report_html(dir_, opt);
+    FAIL() << "no error without assets";
+  } catch (const InputError& e) {
+    EXPECT_NE(std::string(e.what()).find("vendor-viewer.sh"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace clearfit

@@ -1,0 +1,164 @@
+#!/usr/bin/env node
+// Checks a clearfit report.html in a real headless browser (Debian's chromium
+// driven by playwright-core from web/node_modules):
+//  - it loads from file:// with no console error, no page error and no request
+//    other than file:, data: and blob: URLs (http(s) requests are also blocked);
+//  - every 3D view (pressure, signal) loads and renders: a screenshot of the
+//    viewer is not blank (luminance spread and share of non-background pixels),
+//    and the views differ from each other;
+//  - the hotspot table equals report.json (exact values in data-value, shown
+//    text rounded), and clicking a hotspot marker shows that hotspot's numbers.
+// Usage: node check_report.mjs REPORT.html [--screenshot-dir DIR] [--timeout-ms 60000]
+// Prints one JSON line of measurements; exits 1 with a message per failed check.
+import { readFileSync, mkdirSync, writeFileSync } from 'node:fs';
+import { createRequire } from 'node:module';
+import { dirname, resolve, join } from 'node:path';
+import { fileURLToPath, pathToFileURL } from 'node:url';
+
+const here = dirname(fileURLToPath(import.meta.url));
+const webDir = process.env.CLEARFIT_WEB_DIR || resolve(here, '../../web');
+const require = createRequire(join(webDir, 'package.json'));
+const { chromium } = require('playwright-core');
+
+const args = process.argv.slice(2);
+const htmlPath = resolve(args[0] || '');
+const opt = (name, fallback) => { const i = args.indexOf(name); return i >= 0 ? args[i + 1] : fallback; };
+const shotDir = opt('--screenshot-dir', '');
+const timeout = Number(opt('--timeout-ms', '60000'));
+const executablePath = process.env.CLEARFIT_CHROMIUM || '/usr/bin/chromium';
+
+const failures = [];
+const fail = (msg) => failures.push(msg);
+const measured = { html: htmlPath, views: {} };
+
+const report = JSON.parse(readFileSync(join(dirname(htmlPath), 'report.json'), 'utf8'));
+
+const browser = await chromium.launch({
+  executablePath,
+  args: ['--use-angle=swiftshader', '--enable-unsafe-swiftshader', '--disable-background-networking',
+         '--disable-component-update', '--disable-sync', '--no-first-run', '--disable-quic'],
+});
+try {
+  const context = await browser.newContext({ viewport: { width: 1200, height: 900 } });
+  await context.route(/^https?:/, (route) => route.abort());
+  const page = await context.newPage();
+  page.on('console', (m) => { if (m.type() === 'error') fail(`console error: ${m.text()}`); });
+  page.on('pageerror', (e) => fail(`page error: ${e.message}`));
+  page.on('dialog', (d) => { fail(`a dialog opened (injected script?): ${d.message()}`); d.dismiss().catch(() => {}); });
+  page.on('request', (r) => {
+    const url = r.url();
+    if (!/^(file|data|blob):/.test(url)) fail(`network request: ${url}`);
+  });
+
+  const t0 = Date.now();
+  await page.goto(pathToFileURL(htmlPath).href, { waitUntil: 'load', timeout });
+  measured.page_load_ms = Date.now() - t0;
+
+  // Luminance spread and share of pixels unlike the background (top-left
+  // pixel) of a PNG, measured in the page itself through a canvas.
+  const pixelStats = (png) => page.evaluate(async (b64) => {
+    const img = new Image();
+    img.src = 'data:image/png;base64,' + b64;
+    await img.decode();
+    const c = document.createElement('canvas');
+    c.width = img.width; c.height = img.height;
+    const g = c.getContext('2d');
+    g.drawImage(img, 0, 0);
+    const d = g.getImageData(0, 0, c.width, c.height).data;
+    const bg = [d[0], d[1], d[2]];
+    let n = 0, sum = 0, sum2 = 0, differ = 0, colourful = 0;
+    for (let i = 0; i < d.length; i += 4) {
+      const y = 0.2126 * d[i] + 0.7152 * d[i + 1] + 0.0722 * d[i + 2];
+      sum += y; sum2 += y * y; ++n;
+      if (Math.abs(d[i] - bg[0]) + Math.abs(d[i + 1] - bg[1]) + Math.abs(d[i + 2] - bg[2]) > 30) ++differ;
+      if (Math.max(d[i], d[i + 1], d[i + 2]) - Math.min(d[i], d[i + 1], d[i + 2]) > 60) ++colourful;
+    }
+    const mean = sum / n;
+    return { luminance_std: Math.sqrt(Math.max(0, sum2 / n - mean * mean)), foreground_fraction: differ / n, colourful_fraction: colourful / n };
+  }, png.toString('base64'));
+
+  const views = await page.evaluate(() => JSON.parse(document.getElementById('clearfit-data').textContent).views.map((v) => v.key));
+  const shots = {};
+  for (const key of views) {
+    const t1 = Date.now();
+    await page.evaluate((k) => window.clearfitReport.show(k), key);
+    try {
+      await page.waitForFunction((k) => window.clearfitReport.current === k &&
+                                        ['loaded', 'error'].includes(window.clearfitReport.views[k]),
+                                 key, { timeout });
+    } catch (e) {
+      fail(`view ${key}: the model did not load within ${timeout} ms`);
+      continue;
+    }
+    const state = await page.evaluate(() => ({ error: window.clearfitReport.error, visible: document.getElementById('viewer').modelIsVisible }));
+    if (state.error) fail(`view ${key}: model-viewer reported ${state.error}`);
+    // Let the renderer draw a few frames after the load event.
+    await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(() => setTimeout(r, 300)))));
+    const png = await page.locator('#viewer').screenshot();
+    shots[key] = png.toString('base64');
+    if (shotDir) { mkdirSync(shotDir, { recursive: true }); writeFileSync(join(shotDir, `view_${key}.png`), png); }
+    const stats = await pixelStats(png);
+    measured.views[key] = { load_ms: Date.now() - t1, model_visible: state.visible, ...stats };
+    // Not blank: the part stands out from the background, and the heatmap's
+    // colours (saturated, unlike the grey no-data colour and the background) show.
+    if (!(stats.luminance_std > 8 && stats.foreground_fraction > 0.02 && stats.colourful_fraction > 0.01))
+      fail(`view ${key}: the 3D view looks blank (luminance std ${stats.luminance_std.toFixed(1)}, ` +
+           `${(100 * stats.foreground_fraction).toFixed(2)} % of pixels unlike the background, ` +
+           `${(100 * stats.colourful_fraction).toFixed(2)} % coloured)`);
+  }
+  if (views.length > 1 && shots[views[0]] && shots[views[0]] === shots[views[1]]) fail('the pressure and signal views look identical');
+
+  // The hotspot table against report.json.
+  const rows = await page.$$eval('#hotspot-table tbody tr', (trs) => trs.map((tr) => ({
+    id: tr.dataset.hotspot,
+    cells: Object.fromEntries(Array.from(tr.querySelectorAll('td[data-key]')).map((td) => [td.dataset.key, { value: td.dataset.value, text: td.textContent }])),
+  })));
+  const hotspots = report.hotspots || [];
+  measured.hotspot_rows = rows.length;
+  if (rows.length !== hotspots.length) fail(`hotspot table has ${rows.length} rows, report.json ${hotspots.length} hotspots`);
+  const calibrated = Boolean(report.calibration && report.calibration.pressure);
+  const digits = calibrated
+    ? { threshold_kpa: 2, peak_kpa: 2, peak_sigma_kpa: 2, mean_kpa: 2, mean_sigma_kpa: 2, area_mm2: 1 }
+    : { peak_signal: 4, mean_signal: 4, area_mm2: 1 };
+  const shown = (v, d) => (v === null || v === undefined ? '\u2014' : v.toFixed(d));
+  hotspots.forEach((h, i) => {
+    const row = rows[i];
+    if (!row) return;
+    if (String(h.id) !== row.id) fail(`row ${i}: id ${row.id}, report.json ${h.id}`);
+    for (const [key, d] of Object.entries(digits)) {
+      const cell = row.cells[key];
+      if (!cell) { fail(`hotspot ${h.id}: no ${key} column`); continue; }
+      const value = cell.value === '' ? null : JSON.parse(cell.value);
+      if (value !== (h[key] ?? null)) fail(`hotspot ${h.id} ${key}: data-value ${cell.value}, report.json ${h[key]}`);
+      if (cell.text !== shown(h[key] ?? null, d)) fail(`hotspot ${h.id} ${key}: shows "${cell.text}", expected "${shown(h[key] ?? null, d)}"`);
+    }
+    if (JSON.stringify(JSON.parse(row.cells.centroid_mm.value)) !== JSON.stringify(h.centroid_mm)) fail(`hotspot ${h.id}: centroid differs`);
+  });
+
+  // A click on a marker shows its numbers.
+  if (hotspots.length && views.length) {
+    const id = String(hotspots[0].id);
+    await page.locator(`button.hotspot[data-hotspot="${id}"]`).click({ force: true });
+    const panel = await page.locator('.hotspot-panel').textContent();
+    const visible = await page.locator('.hotspot-panel').isVisible();
+    if (!visible || !panel.includes(`Hotspot ${id}`)) fail(`clicking hotspot ${id} did not show its numbers (panel: "${panel}")`);
+    if (report.calibration.pressure && !panel.includes(hotspots[0].peak_kpa.toFixed(2))) fail(`hotspot ${id} panel lacks its peak ${hotspots[0].peak_kpa.toFixed(2)}`);
+  }
+
+  // Screen: the print snapshot stays hidden.
+  if (views.length && await page.locator('#viewer-print').isVisible()) fail('the print snapshot of the 3D view shows on screen');
+
+  // Print: the interactive controls are hidden.
+  await page.emulateMedia({ media: 'print' });
+  const printHidden = await page.evaluate(() => Array.from(document.querySelectorAll('model-viewer, .toggle, .hint')).every((e) => getComputedStyle(e).display === 'none'));
+  if (!printHidden) fail('the print stylesheet does not hide the interactive viewer');
+  if (shotDir) await page.screenshot({ path: join(shotDir, 'page.png'), fullPage: true });
+} finally {
+  await browser.close();
+}
+
+console.log(JSON.stringify(measured));
+if (failures.length) {
+  for (const f of failures) console.error('check_report: ' + f);
+  process.exit(1);
+}
