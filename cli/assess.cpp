@@ -99,8 +99,10 @@ class StagedFolder {
  public:
   explicit StagedFolder(fs::path target) : target_(std::move(target)) {
     const fs::path parent = target_.parent_path().empty() ? fs::path(".") : target_.parent_path();
+    std::error_code ec;
+    fs::create_directories(parent, ec);
     if (!fs::is_directory(parent))
-      throw InputError(target_.string(), "", "the folder " + parent.string() + " does not exist", "create it first");
+      throw InputError(target_.string(), "", "the folder " + parent.string() + " cannot be created", "check the path and its permissions");
     staging_ = parent / ("." + target_.filename().string() + ".partial-" + std::to_string(::getpid()));
     fs::remove_all(staging_);
     fs::create_directories(staging_);

@@ -236,7 +236,9 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
     // Motion: content displacement of this frame against the reference.
     Vec2 shift = Vec2::Zero();
     if (options.register_motion) {
-      const cv::Mat g = linear_green_patch(frame, patch_rect);
+      // Half resolution (pyrDown): a 256 px patch registers to ~0.02 px in about 1 ms.
+      cv::Mat g;
+      cv::pyrDown(linear_green_patch(frame, patch_rect), g);
       if (reference.empty()) {
         reference.patch = g;
         reference.origin = patch_rect.tl();
@@ -244,11 +246,11 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
         // Enhanced correlation (ECC), translation only, started from the previous frame's
         // displacement: intensity-based and sub-pixel; robust to the press's local change.
         const Vec2 start = sums.shift_px.empty() ? previous_shift : sums.shift_px.back();
-        cv::Mat warp = (cv::Mat_<float>(2, 3) << 1, 0, static_cast<float>(start.x()), 0, 1, static_cast<float>(start.y()));
+        cv::Mat warp = (cv::Mat_<float>(2, 3) << 1, 0, static_cast<float>(start.x() / 2), 0, 1, static_cast<float>(start.y() / 2));
         try {
           cv::findTransformECC(reference.patch, g, warp, cv::MOTION_TRANSLATION,
-                               cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 50, 1e-4), cv::noArray(), 5);
-          shift = Vec2(warp.at<float>(0, 2), warp.at<float>(1, 2));
+                               cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 20, 1e-3), cv::noArray(), 1);
+          shift = 2.0 * Vec2(warp.at<float>(0, 2), warp.at<float>(1, 2));
         } catch (const cv::Exception&) {
           shift = Vec2::Constant(std::numeric_limits<double>::quiet_NaN());
         }
@@ -331,8 +333,9 @@ FrameWindow last_frames(const CaptureSums& sums, int window_frames) {
 PhaseAverage average_window(const CaptureSums& sums, FrameWindow window, int min_frames) {
   const int c = sums.chunk_frames;
   const int n = static_cast<int>(sums.shift_px.size());
-  // Whole chunks inside the window; a final partial chunk counts as whole when the capture ends there.
-  int first_chunk = (window.first + c - 1) / c;
+  // Whole chunks: the start rounds down to its chunk (at most chunk_frames - 1 frames earlier),
+  // the end rounds down too; a final partial chunk counts when the capture ends there.
+  int first_chunk = std::max(0, window.first) / c;
   int end_frame = std::min(window.first + window.count, n);
   int end_chunk = end_frame == n ? static_cast<int>(sums.chunk_sum.size()) : end_frame / c;
   PhaseAverage avg;
@@ -387,10 +390,18 @@ PhaseSplit split_phases(const CaptureSums& sums, int window_frames) {
   if (n < 4)
     throw InputError(src, "", "has " + std::to_string(n) + " frames: too few to hold a baseline and a press",
                      "film the baseline (not worn) and then the press (worn), each longer than the averaging window");
-  // Log block means: a press raises the green of some blocks; exposure drift moves all alike.
+  // Log block means, each scaled by its own frame-to-frame noise (robust: median absolute
+  // difference of consecutive frames), so a press on a few blocks stands out of the noise.
   std::vector<Eigen::Matrix<double, 64, 1>> v(n);
   for (int t = 0; t < n; ++t)
     for (int k = 0; k < 64; ++k) v[t][k] = std::log(std::max(sums.blocks[t][k], 1e-6f));
+  for (int k = 0; k < 64; ++k) {
+    std::vector<double> d;
+    for (int t = 1; t < n; ++t) d.push_back(std::abs(v[t][k] - v[t - 1][k]));
+    std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
+    const double sigma = std::max(d[d.size() / 2] / (0.6745 * std::sqrt(2.0)), 1e-7);
+    for (int t = 0; t < n; ++t) v[t][k] /= sigma;
+  }
   // Two-segment least squares: the split that minimises the within-segment scatter.
   std::vector<Eigen::Matrix<double, 64, 1>> prefix(n + 1, Eigen::Matrix<double, 64, 1>::Zero());
   std::vector<double> prefix_sq(n + 1, 0);
@@ -408,26 +419,26 @@ PhaseSplit split_phases(const CaptureSums& sums, int window_frames) {
     const double cost = sse(0, t) + sse(t, n);
     if (cost < best_cost) best_cost = cost, best = t;
   }
-  // Noise: median frame-to-frame change of the block statistics (robust to the step itself).
-  std::vector<double> diffs;
-  for (int t = 1; t < n; ++t) diffs.push_back((v[t] - v[t - 1]).norm());
-  std::nth_element(diffs.begin(), diffs.begin() + diffs.size() / 2, diffs.end());
-  const double noise = std::max(diffs[diffs.size() / 2] / std::sqrt(2.0), 1e-9);
   const Eigen::Matrix<double, 64, 1> before = (prefix[best] - prefix[0]) / best;
   const int tail = std::max(1, std::min(20, (n - best) / 4));
   const Eigen::Matrix<double, 64, 1> final_state = (prefix[n] - prefix[n - tail]) / tail;
   PhaseSplit split;
-  split.step_sigmas = (final_state - before).norm() / noise;
+  split.step_sigmas = (final_state - before).cwiseAbs().maxCoeff();  // in units of each block's noise
   if (split.step_sigmas < 8)
-    throw InputError(src, "", "shows no press: the image does not change between a baseline and a worn phase (step " +
-                                  fmt(split.step_sigmas, 1) + " sigma of the frame noise, 8 needed)",
+    throw InputError(src, "", "shows no press: the image does not change between a baseline and a worn phase (largest block step " +
+                                  fmt(split.step_sigmas, 1) + " sigma of its frame noise, 8 needed)",
                      "give one video holding the baseline then the press, or give captures.baseline and captures.worn");
-  // The press starts at the first frame that has left the baseline by 10 % of the step.
+  // Progress along the step, per frame: 0 at the baseline, `step` when settled; the
+  // projection has unit noise (whitened blocks). The press starts at the first frame that
+  // has left the baseline by 10 % of the step (at least 3 σ); it has settled within the same.
   const double step = (final_state - before).norm();
+  const Eigen::Matrix<double, 64, 1> dir = (final_state - before) / step;
+  auto progress = [&](int t) { return (v[t] - before).dot(dir); };
+  const double tol = std::max(0.1 * step, 3.0);
   int press = best;
-  while (press > 1 && (v[press - 1] - before).norm() > 0.1 * step) --press;
+  while (press > 1 && progress(press - 1) > tol) --press;
   int settled = best;
-  while (settled < n && (v[settled] - final_state).norm() > 0.1 * step) ++settled;
+  while (settled < n - 1 && std::abs(progress(settled) - step) > tol) ++settled;
   split.press_frame = press;
   split.settled_frame = std::min(settled, n - 1);
   const int margin = std::max(2, sums.chunk_frames);

@@ -60,7 +60,7 @@ struct CaptureReadOptions {
   cv::Rect roi;                   ///< pixels that can see the skin; empty: the whole image
   int chunk_frames = 5;           ///< frames per stored partial sum
   bool register_motion = true;    ///< measure and compensate motion
-  int patch_size = 256;           ///< registration patch edge, px (a power of two), centred on the roi
+  int patch_size = 256;           ///< registration patch edge, px (a power of two), centred on the roi; registered at half resolution
   double max_motion_px = 10.0;    ///< motion beyond this (against the reference) is refused
   int expected_width = 0, expected_height = 0;  ///< the camera's imager; 0: not checked
   std::string role;               ///< "baseline", "worn" or "capture", for messages
@@ -71,7 +71,7 @@ struct CaptureReadOptions {
 /// The registration reference: a patch of the first baseline frame. Shared by
 /// both captures so that both are aligned to the same frame.
 struct MotionReference {
-  cv::Mat patch;       ///< CV_32F linear green of the reference frame's patch
+  cv::Mat patch;       ///< CV_32F linear green of the reference frame's patch, at half resolution
   cv::Point origin;    ///< top-left of the patch in the image
   bool empty() const { return patch.empty(); }
 };
@@ -120,7 +120,7 @@ struct PhaseAverage {
   double mean_code = 0;          ///< mean 8-bit green code over the roi
 };
 
-/// Averages `window` (rounded inwards to whole chunks; InputError when fewer
+/// Averages `window` (rounded to whole chunks: start and end down to a chunk boundary; InputError when fewer
 /// than `min_frames` remain, naming the capture and the counts).
 PhaseAverage average_window(const CaptureSums& sums, FrameWindow window, int min_frames);
 
