@@ -11,7 +11,9 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <filesystem>
 #include <malloc.h>
 #include <cstdio>
 #include <iostream>
@@ -38,7 +40,7 @@ struct Row {
   int triangles = 0;
   MapOptions::Mode kind = MapOptions::Mode::exact;
   double param = 0;
-  double ms = 0, trace_ms = 0, floor_ms = 0, exact_ms = 0, first_ms = 0, unproject_ms = 0;
+  double ms = 0, trace_ms = 0, floor_ms = 0, floor_recast_ms = 0, cpu_ms = 0, floor_cpu_ms = 0, exact_cpu_ms = 0, exact_ms = 0, first_ms = 0, unproject_ms = 0;
   long long traced = 0, interpolated = 0, valid = 0, pixels = 0;
   double coverage = 0, est_max_um = 0;
   bench::MapError err;
@@ -108,7 +110,7 @@ std::string csv_text(const std::vector<Row>& rows, int repeat) {
   o.precision(6);
   o << "shape,width,height,triangles,mode,param,time_ms,trace_ms,floor_ms,ratio_to_floor,speedup_vs_exact,"
        "first_map_ms,first_unproject_ms,pixels,traced,interpolated,valid,coverage,median_um,p99_um,max_um,estimated_max_um,"
-       "validity_diff,repeat\n";
+       "validity_diff,repeat,floor_recast_ms\n";
   for (const Row& r : rows) {
     const auto x = r.size.find('x');
     o << r.shape << ',' << r.size.substr(0, x) << ',' << r.size.substr(x + 1) << ',' << r.triangles << ','
@@ -116,21 +118,22 @@ std::string csv_text(const std::vector<Row>& rows, int repeat) {
       << r.param << ',' << r.ms << ',' << r.trace_ms << ',' << r.floor_ms << ',' << r.ms / r.floor_ms << ','
       << r.exact_ms / r.ms << ',' << r.first_ms << ',' << r.unproject_ms << ',' << r.pixels << ',' << r.traced << ',' << r.interpolated
       << ',' << r.valid << ',' << r.coverage << ',' << r.err.median_um << ',' << r.err.p99_um << ',' << r.err.max_um
-      << ',' << r.est_max_um << ',' << r.err.validity_diff << ',' << repeat << '\n';
+      << ',' << r.est_max_um << ',' << r.err.validity_diff << ',' << repeat << ',' << r.floor_recast_ms << '\n';
   }
   return o.str();
 }
 
 void print_table(const std::vector<Row>& rows) {
-  std::printf("%-6s %-9s %-12s %8s %6s %8s %6s %8s %8s %6s %9s %9s %9s %6s %6s\n", "shape", "size", "mode", "time_ms",
-              "xfloor", "floor_ms", "speed", "first_ms", "unproj", "traced", "median_um", "p99_um", "max_um", "vdiff",
+  std::printf("%-6s %-9s %-12s %8s %6s %8s %6s %6s %6s %6s %8s %8s %6s %9s %9s %9s %6s %6s\n", "shape", "size", "mode", "time_ms",
+              "xfloor", "floor_ms", "xfl_rc", "speed", "cpu_xf", "cpu_sp", "first_ms", "unproj", "traced", "median_um", "p99_um", "max_um", "vdiff",
               "cover");
   std::string last;
   for (const Row& r : rows) {
     if (!last.empty() && last != r.shape + r.size) std::printf("\n");
     last = r.shape + r.size;
-    std::printf("%-6s %-9s %-12s %8.1f %6.2f %8.1f %5.1fx %8.1f %8.1f %5.1f%% %9.3g %9.3g %9.3g %6lld %5.1f%%\n",
-                r.shape.c_str(), r.size.c_str(), r.mode.c_str(), r.ms, r.ms / r.floor_ms, r.floor_ms, r.exact_ms / r.ms,
+    std::printf("%-6s %-9s %-12s %8.1f %6.2f %8.1f %6.2f %5.1fx %6.2f %5.1fx %8.1f %8.1f %5.1f%% %9.3g %9.3g %9.3g %6lld %5.1f%%\n",
+                r.shape.c_str(), r.size.c_str(), r.mode.c_str(), r.ms, r.ms / r.floor_ms, r.floor_ms,
+                r.ms / r.floor_recast_ms, r.exact_ms / r.ms, r.cpu_ms / r.floor_cpu_ms, r.exact_cpu_ms / r.cpu_ms,
                 r.first_ms, r.unproject_ms, 100.0 * r.traced / std::max(1LL, r.pixels), r.err.median_um, r.err.p99_um,
                 r.err.max_um, r.err.validity_diff, 100 * r.coverage);
   }
@@ -224,12 +227,25 @@ cv::Mat plot(const std::vector<Row>& rows) {
   return img;
 }
 
+// Raw per-pixel arrays of a map, concatenated: status (uint8), skin_point
+// (3 float64), face (int32), bary (2 float32), incidence_deg, contact_deg,
+// transmittance (float32); native byte order. For comparing builds bit by bit.
+void dump_map(const RefractionMap& m, const std::filesystem::path& path) {
+  write_file_atomically(path, [&](std::ostream& out) {
+    auto put = [&](const auto& v) {
+      out.write(reinterpret_cast<const char*>(v.data()), static_cast<std::streamsize>(v.size() * sizeof v[0]));
+    };
+    put(m.status), put(m.skin_point), put(m.face), put(m.bary), put(m.incidence_deg), put(m.contact_deg),
+        put(m.transmittance);
+  });
+}
+
 }  // namespace
 
 Run add_bench(CLI::App& app) {
   struct Opts {
     std::string sizes = "640x480,1920x1080", shapes = "slab,band,dome,bumps",
-                modes = "exact,grid:2,grid:8,grid:32,adaptive:0.1,adaptive:1,adaptive:10", csv, plot;
+                modes = "exact,grid:2,grid:8,grid:32,adaptive:0.1,adaptive:1,adaptive:10", csv, plot, dump;
     int repeat = 3;
     bool fresh_memory = false;
   };
@@ -243,6 +259,9 @@ Run add_bench(CLI::App& app) {
   sub->add_option("--modes", o->modes, "exact, grid:STEP, adaptive:TOLERANCE_UM")->capture_default_str();
   sub->add_option("--csv", o->csv, "Write the results as CSV (header row)");
   sub->add_option("--plot", o->plot, "Write a PNG plot of time against p99 error");
+  sub->add_option("--dump", o->dump,
+                 "Write each case's map as raw arrays to DIR/SHAPE_SIZE_MODE.bin (status u8, skin_point 3 f64, face "
+                 "i32, bary 2 f32, incidence, contact, transmittance f32) to compare builds");
   sub->add_option("--repeat", o->repeat, "Timed runs per case; the best is reported")->check(CLI::Range(1, 100))->capture_default_str();
   sub->add_flag("--fresh-memory", o->fresh_memory,
                 "Let freed memory go back to the OS (glibc default): every map then pays for first touches of its "
@@ -279,7 +298,7 @@ Run add_bench(CLI::App& app) {
         const bench::Floor fl = bench::measure_floor(*scene, rays, pose, exact, exact_opt.indices, o->repeat + 1);
         std::cerr << "bench: " << shape << " " << size.label() << ": floor " << fl.ms << " ms (" << fl.rays1 << " + "
                   << fl.rays2 << " rays), coverage " << 100 * exact.stats.coverage << " %\n";
-        double exact_ms = 0;
+        double exact_ms = 0, exact_cpu_ms = 0;
         const std::size_t first_row = rows.size();
         for (const ModeSpec& m : modes) {
           MapOptions opt;
@@ -287,9 +306,18 @@ Run add_bench(CLI::App& app) {
           opt.grid_step = m.step;
           opt.tolerance_um = m.tol_um;
           RefractionMap best;
+          double best_cpu = 1e300;
           for (int r = 0; r < o->repeat; ++r) {
+            const double c0 = bench::process_cpu_ms();
             RefractionMap map = compute_refraction_map(scene->trace(), camera, pose, opt);
+            best_cpu = std::min(best_cpu, bench::process_cpu_ms() - c0);
             if (r == 0 || map.stats.total_ms < best.stats.total_ms) best = std::move(map);
+          }
+          if (!o->dump.empty()) {
+            std::filesystem::create_directories(o->dump);
+            std::string name = shape + "_" + size.label() + "_" + m.label + ".bin";
+            std::replace(name.begin(), name.end(), ':', '-');
+            dump_map(best, std::filesystem::path(o->dump) / name);
           }
           Row row;
           row.shape = shape;
@@ -301,6 +329,9 @@ Run add_bench(CLI::App& app) {
           row.ms = best.stats.total_ms;
           row.trace_ms = best.stats.trace_ms;
           row.floor_ms = fl.ms;
+          row.floor_recast_ms = fl.recast_ms;
+          row.cpu_ms = best_cpu;
+          row.floor_cpu_ms = fl.cpu_ms;
           row.first_ms = exact.stats.total_ms;
           row.unproject_ms = exact.stats.unproject_ms;
           row.traced = best.stats.traced;
@@ -310,7 +341,7 @@ Run add_bench(CLI::App& app) {
           row.coverage = best.stats.coverage;
           row.est_max_um = best.stats.max_error_um;
           row.err = bench::compare_maps(best, exact);
-          if (m.mode == MapOptions::Mode::exact) exact_ms = row.ms;
+          if (m.mode == MapOptions::Mode::exact) exact_ms = row.ms, exact_cpu_ms = row.cpu_ms;
           rows.push_back(row);
           std::cerr << "bench: [" << ++done << "/" << cases << "] " << shape << " " << size.label() << " " << m.label
                     << ": " << row.ms << " ms, p99 " << row.err.p99_um << " um\n";
@@ -319,11 +350,14 @@ Run add_bench(CLI::App& app) {
           RefractionMap again = compute_refraction_map(scene->trace(), camera, pose, exact_opt);
           exact_ms = std::min(exact.stats.total_ms, again.stats.total_ms);
         }
-        for (std::size_t k = first_row; k < rows.size(); ++k) rows[k].exact_ms = exact_ms;
+        for (std::size_t k = first_row; k < rows.size(); ++k) rows[k].exact_ms = exact_ms, rows[k].exact_cpu_ms = exact_cpu_ms;
       }
     }
     std::printf("# refraction map, best of %d runs per case (wall clock ms, all threads)%s\n"
-                "# xfloor = time / floor (2 batched ray casts per traced pixel); speed = exact time / time\n"
+                "# xfloor = time / floor (2 batched ray casts per traced pixel, the second skipping the entry face);\n"
+                "#   xfl_rc = time / the floor with Embree's re-cast of refracted rays that re-find their entry face\n"
+                "# speed = exact time / time; cpu_xf, cpu_sp: the same ratios in process CPU time (all threads,\n"
+                "#   best of the runs; steadier than wall time when other processes share the cores)\n"
                 "# first_ms = the first (exact) map of the shape and size, with the unprojection (unproj) of its\n"
                 "#   pixels; the later maps reuse the cached rays\n"
                 "# errors: |skin point - exact| over pixels valid in both; vdiff = pixels valid in only one\n",

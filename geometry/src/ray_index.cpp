@@ -125,7 +125,7 @@ RayHit resolve(const RayIndex& index, const VertexFaces& around, const Ray& ray,
       const TriangleTest tt = test(g);
       if (!tt.inside()) continue;
       const double t = tt.t();
-      if (t >= ray.t_min) {
+      if (t >= ray.t_min && g != ray.skip_face) {  // the skip face only as a hit to reject (re-cast past)
         if (t < t_after || (t == t_after && g < after)) after = g, t_after = t;
       } else if (t > t_before) {
         before = g, t_before = t;

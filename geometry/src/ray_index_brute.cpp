@@ -22,12 +22,13 @@ class BruteForceIndex final : public RayIndex {
   RayBackend backend() const override { return RayBackend::brute_force; }
 
  private:
-  // Smallest t in [t_min, t_max]; ties go to the lower face index.
+  // Smallest t in [t_min, t_max] off the skip face; ties go to the lower face index.
   RayHit cast(const Ray& ray) const {
     int best = -1;
     double best_t = std::numeric_limits<double>::infinity();
     const Mesh& m = mesh();
     for (int f = 0; f < m.num_faces(); ++f) {
+      if (f == ray.skip_face) continue;
       const TriangleTest tt = test_triangle(ray.origin, ray.direction, m.corner(f, 0), m.corner(f, 1), m.corner(f, 2));
       if (!tt.inside()) continue;
       const double t = tt.t();

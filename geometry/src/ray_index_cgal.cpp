@@ -65,6 +65,7 @@ class CgalIndex final : public RayIndex {
     bool go_further() const { return true; }
     void intersection(const Ray&, const Primitive& p) {
       const int f = index.face_of_[p.id() - index.triangles_.cbegin()];
+      if (f == ray.skip_face) return;
       const Mesh& m = index.mesh();
       const TriangleTest tt = test_triangle(ray.origin, ray.direction, m.corner(f, 0), m.corner(f, 1), m.corner(f, 2));
       if (!tt.inside()) return;

@@ -22,7 +22,9 @@
 // kFloatSlack so a hit with double t <= t_max is not lost to float rounding.
 // The refined t decides: above t_max is a miss; below t_min re-casts with that
 // face filtered out (one extra cast, typically when a ray starts on the
-// surface it just left).
+// surface it just left). A ray's skip_face is filtered out of its first cast
+// already (context filter keyed by the ray id), so a ray leaving a face it
+// names does not need that extra cast.
 #include "ray_index_internal.hpp"
 
 #include <embree3/rtcore.h>
@@ -173,6 +175,7 @@ class EmbreeIndex final : public RayIndex {
     double best_t = std::numeric_limits<double>::infinity();
     for (int i = around_.offset[v]; i < around_.offset[v + 1]; ++i) {
       const int g = around_.faces[i];
+      if (g == r.skip_face) continue;
       const TriangleTest tt = test_triangle(r.origin, r.direction, m.corner(g, 0), m.corner(g, 1), m.corner(g, 2));
       if (!tt.inside()) continue;
       const double t = tt.t();
@@ -190,13 +193,16 @@ class EmbreeIndex final : public RayIndex {
     SkipContext skip;
     rtcInitIntersectContext(&skip.context);
     skip.context.filter = &SkipContext::filter;
+    if (r.skip_face >= 0) skip.ids[skip.count++] = {kTriangles, static_cast<unsigned>(r.skip_face)};
     while (f.active && geom != RTC_INVALID_GEOMETRY_ID) {
       if (geom == kGuards) {
         if (RayHit hit = fan_hit(r, static_cast<int>(prim))) return hit;
       } else {
         RayHit hit = resolve(*this, around_, r, static_cast<int>(prim), std::array<double, 3>{1.0 - u - v, u, v});
-        if (hit.t > r.t_max) return {};
-        if (hit.t >= r.t_min) return hit;
+        if (hit.face != r.skip_face) {  // else: rounding near the face the ray leaves; re-cast past `prim`
+          if (hit.t > r.t_max) return {};
+          if (hit.t >= r.t_min) return hit;
+        }
       }
       if (skip.count == SkipContext::kCapacity) return {};  // only for a ray lying in a fan of coplanar faces
       skip.ids[skip.count++] = {geom, prim};
@@ -223,6 +229,29 @@ class EmbreeIndex final : public RayIndex {
     }
   };
 
+  // The first cast's context: with a filter dropping each ray's skip_face
+  // (looked up by ray id = index from `rays`) when some ray of the batch has one.
+  struct FirstCastContext {
+    RTCIntersectContext context;  // first member: Embree hands filters this pointer
+    const Ray* rays = nullptr;
+    static void filter(const RTCFilterFunctionNArguments* args) {
+      const auto* self = reinterpret_cast<const FirstCastContext*>(args->context);
+      for (unsigned i = 0; i < args->N; ++i)
+        if (args->valid[i] == -1 && RTCHitN_geomID(args->hit, args->N, i) == kTriangles &&
+            static_cast<int>(RTCHitN_primID(args->hit, args->N, i)) == self->rays[RTCRayN_id(args->ray, args->N, i)].skip_face)
+          args->valid[i] = 0;
+    }
+  };
+  FirstCastContext first_cast_context(const Ray* rays, size_t n) const {
+    FirstCastContext c;
+    c.context = context();
+    if (std::any_of(rays, rays + n, [](const Ray& r) { return r.skip_face >= 0; })) {
+      c.rays = rays;
+      c.context.filter = &FirstCastContext::filter;
+    }
+    return c;
+  }
+
   static RTCRayHit to_rayhit(const FloatRay& f) {
     RTCRayHit rh{};
     rh.ray.org_x = f.org[0], rh.ray.org_y = f.org[1], rh.ray.org_z = f.org[2];
@@ -243,33 +272,33 @@ class EmbreeIndex final : public RayIndex {
   }
 
   void trace_single(std::span<const Ray> rays, std::span<RayHit> hits, size_t b, size_t e) const {
-    RTCIntersectContext c = context();
     for (size_t i = b; i < e; ++i) {
+      FirstCastContext c = first_cast_context(&rays[i], 1);
       const FloatRay f = prepare(rays[i]);
       RTCRayHit rh = to_rayhit(f);
-      if (f.active) rtcIntersect1(scene_, &c, &rh);
+      if (f.active) rtcIntersect1(scene_, &c.context, &rh);
       hits[i] = finish(rays[i], f, rh.hit.geomID, rh.hit.primID, rh.hit.u, rh.hit.v);
     }
   }
 
   void trace_packets(std::span<const Ray> rays, std::span<RayHit> hits, size_t b, size_t e) const {
-    RTCIntersectContext c = context();
     RTCRayHit16 p;
     alignas(64) int valid[16];
     FloatRay f[16];
     for (size_t first = b; first < e; first += 16) {
       const size_t n = std::min<size_t>(16, e - first);
+      FirstCastContext c = first_cast_context(&rays[first], n);
       for (size_t k = 0; k < 16; ++k) {
         f[k] = k < n ? prepare(rays[first + k]) : FloatRay{};
         valid[k] = f[k].active ? -1 : 0;
         p.ray.org_x[k] = f[k].org[0], p.ray.org_y[k] = f[k].org[1], p.ray.org_z[k] = f[k].org[2];
         p.ray.dir_x[k] = f[k].dir[0], p.ray.dir_y[k] = f[k].dir[1], p.ray.dir_z[k] = f[k].dir[2];
         p.ray.tnear[k] = f[k].tnear, p.ray.tfar[k] = f[k].tfar;
-        p.ray.time[k] = 0, p.ray.mask[k] = ~0u, p.ray.id[k] = 0, p.ray.flags[k] = 0;
+        p.ray.time[k] = 0, p.ray.mask[k] = ~0u, p.ray.id[k] = static_cast<unsigned>(k), p.ray.flags[k] = 0;
         p.hit.geomID[k] = RTC_INVALID_GEOMETRY_ID;
         p.hit.instID[0][k] = RTC_INVALID_GEOMETRY_ID;
       }
-      rtcIntersect16(valid, scene_, &c, &p);
+      rtcIntersect16(valid, scene_, &c.context, &p);
       for (size_t k = 0; k < n; ++k)
         hits[first + k] = finish(rays[first + k], f[k], p.hit.geomID[k], p.hit.primID[k], p.hit.u[k],
                                  p.hit.v[k]);
@@ -277,11 +306,14 @@ class EmbreeIndex final : public RayIndex {
   }
 
   void trace_stream(std::span<const Ray> rays, std::span<RayHit> hits, size_t b, size_t e) const {
-    RTCIntersectContext c = context();
+    FirstCastContext c = first_cast_context(&rays[b], e - b);
     std::vector<FloatRay> f(e - b);
     std::vector<RTCRayHit> rh(e - b);
-    for (size_t i = b; i < e; ++i) rh[i - b] = to_rayhit(f[i - b] = prepare(rays[i]));
-    rtcIntersect1M(scene_, &c, rh.data(), static_cast<unsigned>(rh.size()), sizeof(RTCRayHit));
+    for (size_t i = b; i < e; ++i) {
+      rh[i - b] = to_rayhit(f[i - b] = prepare(rays[i]));
+      rh[i - b].ray.id = static_cast<unsigned>(i - b);
+    }
+    rtcIntersect1M(scene_, &c.context, rh.data(), static_cast<unsigned>(rh.size()), sizeof(RTCRayHit));
     for (size_t i = b; i < e; ++i) {
       const RTCRayHit& r = rh[i - b];
       hits[i] = finish(rays[i], f[i - b], r.hit.geomID, r.hit.primID, r.hit.u, r.hit.v);

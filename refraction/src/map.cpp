@@ -6,8 +6,11 @@
 #include <clearfit/error.hpp>
 #include <clearfit/refraction/map.hpp>
 
+#include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
 
+#include <algorithm>
+#include <array>
 #include <atomic>
 #include <chrono>
 #include <cmath>
@@ -55,27 +58,39 @@ class CameraRays {
  public:
   explicit CameraRays(const CameraModel& camera)
       : camera_(camera), rays_(static_cast<std::size_t>(camera.width) * camera.height), known_(rays_.size(), 0) {}
-  /// Fills `out[i]` with the unit ray of pixel index `pixels[i]` (NaN if the lens cannot unproject it).
-  void get(std::span<const std::uint32_t> pixels, std::span<Vec3> out) {
+  /// Unprojects those of `pixels` (pixel indices) not unprojected before.
+  /// Afterwards ray(p) of each of them may be read from any thread.
+  void ensure(std::span<const std::uint32_t> pixels) {
     std::lock_guard lock(mutex_);
     std::vector<std::uint32_t> missing;
     for (std::uint32_t p : pixels)
       if (!known_[p]) missing.push_back(p);
-    if (!missing.empty()) {
-      std::vector<Vec2> q(missing.size());
-      for (std::size_t i = 0; i < missing.size(); ++i)
-        q[i] = Vec2(missing[i] % camera_.width, missing[i] / camera_.width);
-      std::vector<Vec3> r(missing.size());
-      camera_.unproject(q, r);
-      for (std::size_t i = 0; i < missing.size(); ++i) {
-        rays_[missing[i]] = r[i].allFinite() ? Vec3(r[i].normalized()) : Vec3::Zero();
-        known_[missing[i]] = 1;
-      }
-    }
-    for (std::size_t i = 0; i < pixels.size(); ++i) out[i] = rays_[pixels[i]];
+    fill(missing);
   }
+  /// The same for every pixel of rows y0..y1, columns x0..x1 (inclusive).
+  void ensure(int x0, int y0, int x1, int y1) {
+    std::lock_guard lock(mutex_);
+    std::vector<std::uint32_t> missing;
+    for (int y = y0; y <= y1; ++y)
+      for (int x = x0; x <= x1; ++x)
+        if (const auto p = static_cast<std::uint32_t>(y * camera_.width + x); !known_[p]) missing.push_back(p);
+    fill(missing);
+  }
+  /// Unit ray of pixel index p (zero if the lens cannot unproject it); p must be ensured.
+  const Vec3& ray(std::uint32_t p) const { return rays_[p]; }
 
  private:
+  void fill(const std::vector<std::uint32_t>& missing) {
+    if (missing.empty()) return;
+    std::vector<Vec2> q(missing.size());
+    for (std::size_t i = 0; i < missing.size(); ++i) q[i] = Vec2(missing[i] % camera_.width, missing[i] / camera_.width);
+    std::vector<Vec3> r(missing.size());
+    camera_.unproject(q, r);
+    for (std::size_t i = 0; i < missing.size(); ++i) {
+      rays_[missing[i]] = r[i].allFinite() ? Vec3(r[i].normalized()) : Vec3::Zero();
+      known_[missing[i]] = 1;
+    }
+  }
   std::mutex mutex_;
   CameraModel camera_;
   std::vector<Vec3> rays_;
@@ -178,6 +193,7 @@ class Tracer {
     const double incoming = first.origin.cwiseAbs().maxCoeff() + std::abs(h.t) * first.direction.norm();
     second.t_min = leave_surface_t(*scene_.mesh, h.face, h.point, std::abs(d2.dot(h.geometric_normal)), incoming);
     second.t_max = std::numeric_limits<double>::infinity();
+    second.skip_face = h.face;  // a ray cannot meet the plane it leaves again
     return true;
   }
 
@@ -199,61 +215,73 @@ class Tracer {
     s.bary = h.bary;
   }
 
-  /// Exact trace of a batch of rays (two batched casts).
+  /// Exact trace of a batch of rays: chunks of kChunk rays in parallel, each
+  /// cast twice in one go (no batch-sized temporaries).
   void trace(std::span<const Ray> first, std::span<SkinSample> out) const {
-    // Rays without a usable direction (the lens could not unproject) are not cast.
-    std::vector<RayHit> hit(first.size());
-    {
-      std::vector<std::uint32_t> castable;
-      castable.reserve(first.size());
-      for (std::size_t i = 0; i < first.size(); ++i)
-        if (!first[i].direction.isZero() && first[i].direction.allFinite() && first[i].origin.allFinite())
-          castable.push_back(static_cast<std::uint32_t>(i));
-      if (slab_) {
-        // Closed form where the ray enters through the outer plane; the rest go to the index.
-        std::vector<char> solved(first.size(), 0);
-        tbb::parallel_for(std::size_t(0), castable.size(), [&](std::size_t k) {
-          if (auto h = slab_->enter(first[castable[k]])) hit[castable[k]] = *h, solved[castable[k]] = 1;
-        });
-        std::erase_if(castable, [&](std::uint32_t i) { return solved[i] != 0; });
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, first.size(), kChunk), [&](const auto& r) {
+      for (std::size_t b = r.begin(); b < r.end(); b += kChunk) {
+        const std::size_t n = std::min(kChunk, r.end() - b);
+        trace_chunk(first.subspan(b, n), out.subspan(b, n));
       }
-      if (castable.size() == first.size()) {
-        scene_.index->intersect(first, hit);
-      } else {
-        std::vector<Ray> compact(castable.size());
-        for (std::size_t k = 0; k < castable.size(); ++k) compact[k] = first[castable[k]];
-        std::vector<RayHit> out1(castable.size());
-        scene_.index->intersect(compact, out1);
-        for (std::size_t k = 0; k < castable.size(); ++k) hit[castable[k]] = out1[k];
-      }
-    }
-    std::vector<Ray> second(first.size());
-    std::vector<char> goes_on(first.size(), 0);
-    tbb::parallel_for(std::size_t(0), first.size(), [&](std::size_t i) {
-      out[i] = SkinSample{};
-      goes_on[i] = enter(first[i], hit[i], out[i], second[i]);
     });
-    std::vector<std::uint32_t> which;
-    for (std::size_t i = 0; i < first.size(); ++i)
-      if (goes_on[i]) which.push_back(static_cast<std::uint32_t>(i));
-    if (slab_) {
-      std::vector<char> solved(first.size(), 0);
-      tbb::parallel_for(std::size_t(0), which.size(), [&](std::size_t k) {
-        if (auto h = slab_->reach(second[which[k]])) {
-          reach(*h, out[which[k]]);
-          solved[which[k]] = 1;
+  }
+
+  /// Exact trace of a few rays (up to a few hundred) at once: first cast,
+  /// refraction, second cast, all on the calling thread but for the ray
+  /// index's own parallelism.
+  void trace_chunk(std::span<const Ray> first, std::span<SkinSample> out) const {
+    Scratch w;  // per call: a nested parallel_for in intersect() may run another chunk on this thread
+    const std::size_t n = first.size();
+    w.hit.resize(n);
+    w.which.clear();
+    // Rays without a usable direction (the lens could not unproject) are not cast.
+    for (std::size_t i = 0; i < n; ++i) {
+      w.hit[i] = RayHit{};
+      if (first[i].direction.isZero() || !first[i].direction.allFinite() || !first[i].origin.allFinite()) continue;
+      if (slab_)  // closed form where the ray enters through the outer plane; the rest go to the index
+        if (auto h = slab_->enter(first[i])) {
+          w.hit[i] = *h;
+          continue;
         }
-      });
-      std::erase_if(which, [&](std::uint32_t i) { return solved[i] != 0; });
+      w.which.push_back(static_cast<std::uint32_t>(i));
     }
-    std::vector<Ray> compact(which.size());
-    for (std::size_t k = 0; k < which.size(); ++k) compact[k] = second[which[k]];
-    std::vector<RayHit> hit2(which.size());
-    scene_.index->intersect(compact, hit2);
-    tbb::parallel_for(std::size_t(0), which.size(), [&](std::size_t k) { reach(hit2[k], out[which[k]]); });
+    cast(first, w);
+    w.second.resize(n);
+    w.which.clear();
+    for (std::size_t i = 0; i < n; ++i) {
+      out[i] = SkinSample{};
+      if (!enter(first[i], w.hit[i], out[i], w.second[i])) continue;
+      if (slab_)
+        if (auto h = slab_->reach(w.second[i])) {
+          reach(*h, out[i]);
+          continue;
+        }
+      w.which.push_back(static_cast<std::uint32_t>(i));
+    }
+    cast(w.second, w);
+    for (std::uint32_t i : w.which) reach(w.hit[i], out[i]);
   }
 
  private:
+  static constexpr std::size_t kChunk = 256;
+  struct Scratch {
+    std::vector<RayHit> hit, cast_hit;
+    std::vector<Ray> second, cast_ray;
+    std::vector<std::uint32_t> which;
+  };
+  // Casts rays[which[k]] into w.hit[which[k]].
+  void cast(std::span<const Ray> rays, Scratch& w) const {
+    if (w.which.empty()) return;
+    if (w.which.size() == rays.size()) {
+      scene_.index->intersect(rays, std::span<RayHit>(w.hit.data(), rays.size()));
+      return;
+    }
+    w.cast_ray.resize(w.which.size());
+    w.cast_hit.resize(w.which.size());
+    for (std::size_t k = 0; k < w.which.size(); ++k) w.cast_ray[k] = rays[w.which[k]];
+    scene_.index->intersect(w.cast_ray, w.cast_hit);
+    for (std::size_t k = 0; k < w.which.size(); ++k) w.hit[w.which[k]] = w.cast_hit[k];
+  }
   static bool fail(SkinSample& s, PixelStatus why) {
     s.status = why;
     return false;
@@ -273,8 +301,22 @@ void check_scene(const TraceScene& scene) {
     throw InputError(scene.mesh->source, "contact surface", "has no faces", "choose the faces the skin touches");
 }
 
-// Writes the map's per-pixel fields from one sample.
+// Sets pixel p to "outside" with every field NaN / -1.
+void reset(RefractionMap& map, std::size_t p) {
+  constexpr double dnan = std::numeric_limits<double>::quiet_NaN();
+  map.status[p] = PixelStatus::outside;
+  map.skin_point[p] = Vec3(dnan, dnan, dnan);
+  map.face[p] = -1;
+  map.bary[p] = Eigen::Vector2f(fnan, fnan);
+  map.chart_uv[p] = Eigen::Vector2f(fnan, fnan);
+  map.incidence_deg[p] = fnan;
+  map.contact_deg[p] = fnan;
+  map.transmittance[p] = fnan;
+}
+
+// Writes every per-pixel field of the map from one sample.
 void store(RefractionMap& map, const TraceScene& scene, std::size_t p, const SkinSample& s) {
+  reset(map, p);
   map.status[p] = s.status;
   map.incidence_deg[p] = static_cast<float>(s.incidence_deg);
   if (s.status != PixelStatus::valid) return;
@@ -326,14 +368,15 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
   RefractionMap map;
   map.width = W;
   map.height = H;
-  map.status.assign(N, PixelStatus::outside);
-  map.skin_point.assign(N, Vec3::Constant(std::numeric_limits<double>::quiet_NaN()));
-  map.face.assign(N, -1);
-  map.bary.assign(N, Eigen::Vector2f::Constant(fnan));
-  map.chart_uv.assign(N, Eigen::Vector2f::Constant(fnan));
-  map.incidence_deg.assign(N, fnan);
-  map.contact_deg.assign(N, fnan);
-  map.transmittance.assign(N, fnan);
+  // Sized here, filled in parallel below (every pixel gets reset() once).
+  map.status.resize(N);
+  map.skin_point.resize(N);
+  map.face.resize(N);
+  map.bary.resize(N);
+  map.chart_uv.resize(N);
+  map.incidence_deg.resize(N);
+  map.contact_deg.resize(N);
+  map.transmittance.resize(N);
   MapStats& st = map.stats;
   st.pixels = static_cast<long long>(N);
   st.mode = options.mode == MapOptions::Mode::exact ? "exact" : options.mode == MapOptions::Mode::grid ? "grid" : "adaptive";
@@ -356,22 +399,66 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
   const Tracer tracer(scene, options);
   st.fast_path = tracer.fast_path();
   const Rigid3 part_from_cam = cam_from_part.inverse();
-  std::vector<char> traced(N, 0);
-  // Exact trace of the listed pixels that are not traced yet.
-  auto trace_pixels = [&](std::vector<std::uint32_t> pixels, bool sorted_unique = false) {
-    std::erase_if(pixels, [&](std::uint32_t p) { return traced[p] != 0; });
-    if (!sorted_unique) {
-      std::sort(pixels.begin(), pixels.end());
-      pixels.erase(std::unique(pixels.begin(), pixels.end()), pixels.end());
+  const bool box_empty = box.x0 > box.x1 || box.y0 > box.y1;
+  if (options.mode == MapOptions::Mode::exact) {
+    // One pass over 16x16 tiles in parallel: per tile reset the pixels outside
+    // the box, trace those in it (rays from the per-camera cache, two casts)
+    // and store them; nothing image-sized besides the map itself.
+    if (!box_empty) {
+      const auto tu = Clock::now();
+      rays->ensure(box.x0, box.y0, box.x1, box.y1);
+      st.unproject_ms += ms_since(tu);
     }
-    std::vector<Vec3> dirs(pixels.size());
+    constexpr int T = 16;
+    const int tiles_x = (W + T - 1) / T, tiles_y = (H + T - 1) / T;
+    tbb::parallel_for(0, tiles_x * tiles_y, [&](int t) {
+      const int tx0 = t % tiles_x * T, ty0 = t / tiles_x * T, tx1 = std::min(tx0 + T, W), ty1 = std::min(ty0 + T, H);
+      std::array<std::uint32_t, T * T> pixel;
+      std::array<Ray, T * T> first;
+      std::array<SkinSample, T * T> out;
+      std::size_t n = 0;
+      for (int y = ty0; y < ty1; ++y)
+        for (int x = tx0; x < tx1; ++x) {
+          const auto p = static_cast<std::uint32_t>(map.index(x, y));
+          if (box_empty || x < box.x0 || x > box.x1 || y < box.y0 || y > box.y1) {
+            reset(map, p);
+            continue;
+          }
+          pixel[n] = p;
+          first[n].origin = part_from_cam.translation;
+          first[n].direction = part_from_cam.rotation * rays->ray(p);
+          ++n;
+        }
+      if (n == 0) return;
+      tracer.trace_chunk(std::span(first.data(), n), std::span(out.data(), n));
+      for (std::size_t i = 0; i < n; ++i) store(map, scene, pixel[i], out[i]);
+    });
+    if (!box_empty) st.traced = static_cast<long long>(box.x1 - box.x0 + 1) * (box.y1 - box.y0 + 1);
+  } else {  // pixels in the box are written when traced or filled
+    tbb::parallel_for(0, H, [&](int y) {
+      for (int x = 0; x < W; ++x)
+        if (box_empty || x < box.x0 || x > box.x1 || y < box.y0 || y > box.y1) reset(map, map.index(x, y));
+    });
+  }
+  std::vector<char> traced(options.mode == MapOptions::Mode::exact ? 0 : N, 0);
+  // Exact trace of the listed pixels that are not traced yet.
+  auto trace_pixels = [&](std::vector<std::uint32_t> pixels) {
+    std::erase_if(pixels, [&](std::uint32_t p) { return traced[p] != 0; });
+    // Distinct pixels in 16x16 tiles, row-major within a tile: neighbouring
+    // rays go into the same chunk (coherent casts).
+    auto tile_order = [W](std::uint32_t p) {
+      const std::uint32_t x = p % W, y = p / W;
+      return (std::uint64_t{y >> 4} << 48) | (std::uint64_t{x >> 4} << 32) | p;
+    };
+    std::sort(pixels.begin(), pixels.end(), [&](std::uint32_t a, std::uint32_t b) { return tile_order(a) < tile_order(b); });
+    pixels.erase(std::unique(pixels.begin(), pixels.end()), pixels.end());
     const auto tu = Clock::now();
-    rays->get(pixels, dirs);
+    rays->ensure(pixels);
     st.unproject_ms += ms_since(tu);
     std::vector<Ray> first(pixels.size());
     tbb::parallel_for(std::size_t(0), pixels.size(), [&](std::size_t i) {
       first[i].origin = part_from_cam.translation;
-      first[i].direction = part_from_cam.rotation * dirs[i];
+      first[i].direction = part_from_cam.rotation * rays->ray(pixels[i]);
     });
     std::vector<SkinSample> out(pixels.size());
     tracer.trace(first, out);
@@ -382,14 +469,8 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
     st.traced += static_cast<long long>(pixels.size());
   };
 
-  if (box.x0 <= box.x1 && box.y0 <= box.y1) {
-    if (options.mode == MapOptions::Mode::exact) {
-      std::vector<std::uint32_t> all;
-      all.reserve(static_cast<std::size_t>(box.x1 - box.x0 + 1) * (box.y1 - box.y0 + 1));
-      for (int y = box.y0; y <= box.y1; ++y)
-        for (int x = box.x0; x <= box.x1; ++x) all.push_back(static_cast<std::uint32_t>(map.index(x, y)));
-      trace_pixels(std::move(all), true);
-    } else {
+  if (!box_empty) {
+    if (options.mode != MapOptions::Mode::exact) {
       // Quadtree over pixel cells with up to nine nodes each (corners, edge
       // midpoints, centre), all traced exactly; the interior is filled by
       // tensor-product quadratic (Lagrange) interpolation of the nodes. A
@@ -478,6 +559,117 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
         r.bary = {1 - b1 - b2, b1, b2};
         return r;
       };
+      // Writes the interpolated fields of pixel p (weights w of the nodes).
+      auto write_interp = [&](std::uint32_t p, const Nodes& q, const std::array<double, 9>& w, const Interp& r) {
+        map.status[p] = PixelStatus::valid;
+        map.skin_point[p] = r.point;
+        map.face[p] = r.face;
+        map.bary[p] = Eigen::Vector2f(static_cast<float>(r.bary[1]), static_cast<float>(r.bary[2]));
+        map.chart_uv[p] = r.uv.cast<float>();
+        float inc = 0, con = 0, T = 0;
+        for (int k = 0; k < q.n; ++k) {
+          const float wk = static_cast<float>(w[k]);
+          inc += wk * map.incidence_deg[q.pixel[k]];
+          con += wk * map.contact_deg[q.pixel[k]];
+          T += wk * map.transmittance[q.pixel[k]];
+        }
+        map.incidence_deg[p] = inc;
+        map.contact_deg[p] = con;
+        map.transmittance[p] = std::clamp(T, 0.0f, 1.0f);
+      };
+      // Fills the untraced pixels of an accepted cell through the chart
+      // (point location per pixel); pixels the location misses are marked
+      // for an exact trace (traced = 3). Returns the pixels filled.
+      auto fill_located = [&](const Cell& c, const Nodes& q, int xe, int ye) {
+        long long count = 0;
+        for (int y = c.y0; y <= ye; ++y)
+          for (int x = c.x0; x <= xe; ++x) {
+            const std::uint32_t p = idx(x, y);
+            if (traced[p]) continue;
+            const auto w = weights(q, x, y);
+            const auto r = interpolate(q, w);
+            if (!r) {
+              traced[p] = 3;
+              continue;
+            }
+            traced[p] = 2;
+            write_interp(p, q, w, *r);
+            ++count;
+          }
+        return count;
+      };
+      // The same without a chart: the skin points themselves, evaluated per
+      // row (the quadratic in y folded first), each on the face of the
+      // heaviest node. Gives interpolate()'s result up to rounding.
+      auto fill_direct = [&](const Nodes& q, int x0, int y0, int xe, int ye) {
+        struct Frame {  // the node's face: corner 0, edges, inverse Gram terms
+          Vec3 a, e1, e2;
+          double d11, d12, d22, det;
+        };
+        std::array<Frame, 9> frame;
+        for (int k = 0; k < q.n; ++k) {
+          Frame& f = frame[k];
+          const int face = map.face[q.pixel[k]];
+          f.a = mesh.corner(face, 0), f.e1 = mesh.corner(face, 1) - f.a, f.e2 = mesh.corner(face, 2) - f.a;
+          f.d11 = f.e1.dot(f.e1), f.d12 = f.e1.dot(f.e2), f.d22 = f.e2.dot(f.e2), f.det = f.d11 * f.d22 - f.d12 * f.d12;
+        }
+        auto lagrange = [](const int* at, int n, int v, double* w) {
+          int best = 0;
+          for (int i = 0; i < n; ++i) {
+            w[i] = 1;
+            for (int k = 0; k < n; ++k)
+              if (k != i) w[i] *= double(v - at[k]) / (at[i] - at[k]);
+            if (w[i] > w[best]) best = i;
+          }
+          return best;
+        };
+        long long count = 0;
+        for (int y = y0; y <= ye; ++y) {
+          double wy[3];
+          const int jy = lagrange(q.ay, q.ny, y, wy);
+          Vec3 row[3];
+          double row_f[3][3];  // incidence, contact, transmittance
+          for (int i = 0; i < q.nx; ++i) {
+            row[i].setZero();
+            row_f[i][0] = row_f[i][1] = row_f[i][2] = 0;
+            for (int j = 0; j < q.ny; ++j) {
+              const std::uint32_t n = q.pixel[j * q.nx + i];
+              row[i] += wy[j] * map.skin_point[n];
+              row_f[i][0] += wy[j] * map.incidence_deg[n];
+              row_f[i][1] += wy[j] * map.contact_deg[n];
+              row_f[i][2] += wy[j] * map.transmittance[n];
+            }
+          }
+          for (int x = x0; x <= xe; ++x) {
+            const std::uint32_t p = idx(x, y);
+            if (traced[p]) continue;
+            traced[p] = 2;
+            double wx[3];
+            const int ix = lagrange(q.ax, q.nx, x, wx);
+            Vec3 point = Vec3::Zero();
+            double fsum[3] = {0, 0, 0};
+            for (int i = 0; i < q.nx; ++i) {
+              point += wx[i] * row[i];
+              for (int k = 0; k < 3; ++k) fsum[k] += wx[i] * row_f[i][k];
+            }
+            const Frame& f = frame[jy * q.nx + ix];
+            const Vec3 d = point - f.a;
+            const double de1 = d.dot(f.e1), de2 = d.dot(f.e2);
+            const double b1 = f.det > 0 ? (f.d22 * de1 - f.d12 * de2) / f.det : 0;
+            const double b2 = f.det > 0 ? (f.d11 * de2 - f.d12 * de1) / f.det : 0;
+            map.status[p] = PixelStatus::valid;
+            map.skin_point[p] = point;
+            map.face[p] = map.face[q.pixel[jy * q.nx + ix]];
+            map.bary[p] = Eigen::Vector2f(static_cast<float>(b1), static_cast<float>(b2));
+            map.chart_uv[p] = Eigen::Vector2f(fnan, fnan);
+            map.incidence_deg[p] = static_cast<float>(fsum[0]);
+            map.contact_deg[p] = static_cast<float>(fsum[1]);
+            map.transmittance[p] = std::clamp(static_cast<float>(fsum[2]), 0.0f, 1.0f);
+            ++count;
+          }
+        }
+        return count;
+      };
       auto done = [](const Cell& c) { return c.x1 - c.x0 <= 2 && c.y1 - c.y0 <= 2; };  // every pixel is a node
       // Two check pixels, at a quarter and three quarters of the cell's diagonal.
       auto check_xy = [](const Cell& c, int k) {
@@ -546,44 +738,20 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
           const Nodes q = nodes_of(c);
           const PixelStatus first = map.status[q.pixel[0]];
           const int xe = c.x1 == box.x1 ? c.x1 : c.x1 - 1, ye = c.y1 == box.y1 ? c.y1 : c.y1 - 1;
-          long long count = 0;
-          for (int y = c.y0; y <= ye; ++y)
-            for (int x = c.x0; x <= xe; ++x) {
-              const std::uint32_t p = idx(x, y);
-              if (traced[p]) continue;
-              if (decision[ci] == 2) {
-                traced[p] = 2;
-                map.status[p] = first;
-                continue;
-              }
-              const auto w = weights(q, x, y);
-              const auto r = interpolate(q, w);
-              if (!r) {
-                traced[p] = 3;  // traced exactly after this pass
-                continue;
-              }
-              traced[p] = 2;
-              map.status[p] = PixelStatus::valid;
-              map.skin_point[p] = r->point;
-              map.face[p] = r->face;
-              map.bary[p] = Eigen::Vector2f(static_cast<float>(r->bary[1]), static_cast<float>(r->bary[2]));
-              map.chart_uv[p] = r->uv.cast<float>();
-              float inc = 0, con = 0, T = 0;
-              for (int k = 0; k < q.n; ++k) {
-                const float wk = static_cast<float>(w[k]);
-                inc += wk * map.incidence_deg[q.pixel[k]];
-                con += wk * map.contact_deg[q.pixel[k]];
-                T += wk * map.transmittance[q.pixel[k]];
-              }
-              map.incidence_deg[p] = inc;
-              map.contact_deg[p] = con;
-              map.transmittance[p] = std::clamp(T, 0.0f, 1.0f);
-              ++count;
-            }
-          filled += count;
+          if (decision[ci] == 2) {
+            for (int y = c.y0; y <= ye; ++y)
+              for (int x = c.x0; x <= xe; ++x)
+                if (const std::uint32_t p = idx(x, y); !traced[p]) {
+                  traced[p] = 2;
+                  reset(map, p);
+                  map.status[p] = first;
+                }
+            return;
+          }
+          filled += locator ? fill_located(c, q, xe, ye) : fill_direct(q, c.x0, c.y0, xe, ye);
         });
         st.interpolated += filled;
-        for (std::size_t ci = 0; ci < cells.size(); ++ci) {
+        for (std::size_t ci = 0; locator && ci < cells.size(); ++ci) {
           if (decision[ci] != 1) continue;
           const Cell& c = cells[ci];
           for (int y = c.y0; y <= c.y1; ++y)

@@ -14,6 +14,9 @@ struct Ray {
   Vec3 direction;   ///< need not be unit length; t is in units of |direction|
   double t_min = 0.0;
   double t_max = std::numeric_limits<double>::infinity();
+  /// A face the query ignores (-1: none): the face a ray leaves, e.g. the
+  /// entry face of a refracted ray, so that rounding cannot re-hit it.
+  int skip_face = -1;
 };
 
 /// A hit, recomputed in double precision on the face the index found.
@@ -34,7 +37,8 @@ std::string_view to_string(RayBackend backend);
 class RayIndex {
  public:
   virtual ~RayIndex() = default;
-  /// First hit along each ray with t in [t_min, t_max]; hits[i].face = -1 on a miss.
+  /// First hit along each ray with t in [t_min, t_max] on a face other than its
+  /// skip_face; hits[i].face = -1 on a miss.
   /// Ties (edges, vertices) go to the lowest face index with the least double t.
   /// Thread-safe; parallel over the batch (TBB). Throws std::invalid_argument if
   /// the spans differ in size or a ray has a non-finite origin/direction, a zero
