@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # clearfit's one-command setup for a fresh Debian 12 machine.
-#   scripts/bootstrap.sh sample   install dependencies, build (Release), run clearfit on the bundled sample
+#   scripts/bootstrap.sh sample   install dependencies, build (Release), run clearfit assess on the bundled wristband sample
 #   scripts/bootstrap.sh test     install dependencies, build (Release), run the whole test suite (ctest)
 #   scripts/bootstrap.sh asan     same as test, in a separate AddressSanitizer + UBSan build (build-asan/)
 #   scripts/bootstrap.sh deps     only install the dependencies
@@ -62,11 +62,15 @@ case "${1:-}" in
     install_deps
     install_web
     build build
-    echo "== clearfit mesh-info on the bundled wristband sample"
-    ./build/cli/clearfit mesh-info samples/wristband/wristband.obj --contact-group contact
-    echo "== clearfit map: the wristband's refraction map (samples/wristband/scene.yaml)"
-    ./build/cli/clearfit map --scene samples/wristband/scene.yaml
-    echo "== outputs in samples/wristband/out/: map.npy, inverse.npy, map-stats.json"
+    cf=./build/cli/clearfit
+    s=samples/wristband
+    echo "== clearfit simulate: synthetic not-worn and worn captures of a wrist behind the band ($s/captures/)"
+    [ -f $s/captures/worn.mkv ] && [ -f $s/captures/presses.csv ] || $cf simulate $s/scene.yaml
+    echo "== clearfit calibrate-pressure: the wearer's blanching-to-pressure calibration from the simulated presses"
+    $cf calibrate-pressure --presses $s/captures/presses.csv --person wearer-1 --camera $s/camera.cameramodel \
+        --out $s/captures/calibration.json --plot $s/captures/calibration.png
+    echo "== clearfit assess: where and how hard the band presses"
+    $cf assess $s/scene.yaml
     ;;
   test)
     install_deps

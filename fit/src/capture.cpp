@@ -217,7 +217,8 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
   patch_rect.x = std::clamp(patch_rect.x, 0, info.width - patch);
   patch_rect.y = std::clamp(patch_rect.y, 0, info.height - patch);
   const Vec2 previous_shift = Vec2::Zero();
-  if (!reference.empty() && (reference.origin != patch_rect.tl() || reference.patch.size() != patch_rect.size()))
+  if (!reference.empty() && (reference.origin != patch_rect.tl() || reference.patch.cols * 2 != patch_rect.width ||
+                             reference.patch.rows * 2 != patch_rect.height))
     throw std::invalid_argument("read_capture: the motion reference was taken with another roi");
 
   const float* lut = srgb::to_linear_table8();

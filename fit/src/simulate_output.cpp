@@ -1,0 +1,252 @@
+// Calibration presses through the forward model, and the truth files.
+#include <clearfit/atomic_file.hpp>
+#include <clearfit/fit/contact_mechanics.hpp>
+#include <clearfit/fit/simulate.hpp>
+
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <map>
+#include <numbers>
+#include <random>
+#include <sstream>
+
+namespace clearfit::sim {
+
+namespace {
+constexpr double kPi = std::numbers::pi;
+using json = nlohmann::json;
+
+// Relative SD of the feature y of one press: per-pixel relative noise of the green channel
+// averaged over the disc's pixels and `frames` frames, for the four averages in
+// y = ln[(G/G0)/(G_ref/G_ref0)] (the reference region as large as the disc).
+double press_signal_sd(const SkinParameters& skin, const CameraSettings& cam, const PressOptions& o, double diameter_mm) {
+  const double level = cam.exposure * skin.tone.reflectance[1];
+  const double rel = std::sqrt(level * cam.full_well_e + cam.read_noise_e * cam.read_noise_e) / (cam.full_well_e * level);
+  const double pixels = kPi * 0.25 * diameter_mm * diameter_mm * o.px_per_mm * o.px_per_mm;
+  return rel * std::sqrt(4.0 / (pixels * o.frames));
+}
+
+json vec(const Vec2& v) { return {v.x(), v.y()}; }
+json vec(const Vec3& v) { return {v.x(), v.y(), v.z()}; }
+json skin_json(const SkinParameters& s) {
+  return {{"tone", s.tone.name},
+          {"reflectance_rgb", {s.tone.reflectance[0], s.tone.reflectance[1], s.tone.reflectance[2]}},
+          {"blur_sigma_mm", s.blur_sigma_mm},
+          {"von_mises_weight", s.von_mises_weight},
+          {"von_mises_depth_mm", s.von_mises_depth_mm},
+          {"poisson", s.poisson},
+          {"s50_kpa", s.s50_kpa},
+          {"width_kpa", s.width_kpa},
+          {"beta", s.beta},
+          {"tau_on_s", s.tau_on_s},
+          {"tau_off_s", s.tau_off_s},
+          {"pulse_amplitude", s.pulse_amplitude},
+          {"pulse_hz", s.pulse_hz},
+          {"absorption_rgb", {s.absorption[0], s.absorption[1], s.absorption[2]}},
+          {"ridge_period_mm", s.ridge_period_mm},
+          {"ridge_amplitude", s.ridge_amplitude},
+          {"ridge_warp_mm", s.ridge_warp_mm},
+          {"mottling_amplitude", s.mottling_amplitude},
+          {"mottling_scale_mm", s.mottling_scale_mm},
+          {"texture_seed", s.texture_seed}};
+}
+json calibration_json(const SkinParameters& s) {
+  const EquivalentCalibration c = equivalent_calibration(s);
+  return {{"model", "logistic"},
+          {"y_max", c.y_max},
+          {"p50_kpa", c.p50_kpa},
+          {"width_kpa", c.width_kpa},
+          {"feature", "y = ln[(G/G0)/(G_ref/G_ref0)]"},
+          {"note", "exact for the skin drive (pressure blurred by blur_sigma_mm, mixed with von Mises when "
+                   "von_mises_weight > 0); equals the contact pressure where it varies slowly"}};
+}
+json camera_json(const CameraSettings& c) {
+  return {{"exposure", c.exposure},           {"full_well_e", c.full_well_e},
+          {"read_noise_e", c.read_noise_e},   {"falloff", c.falloff},
+          {"specular_peak", c.specular_peak}, {"specular_center", vec(c.specular_center)},
+          {"specular_sigma", c.specular_sigma}, {"background", c.background},
+          {"flicker_amplitude", c.flicker_amplitude}, {"flicker_hz", c.flicker_hz},
+          {"motion_step_px", c.motion_step_px}, {"supersample", c.supersample},
+          {"texture_mm", c.texture_mm}};
+}
+}  // namespace
+
+void PressOptions::validate() const {
+  if (diameters_mm.empty()) throw std::invalid_argument("PressOptions.diameters_mm must not be empty");
+  for (double d : diameters_mm)
+    if (!(d > 0 && d < 50)) throw std::invalid_argument("PressOptions.diameters_mm: each must be in (0, 50) mm");
+  if (levels < 2) throw std::invalid_argument("PressOptions.levels must be >= 2");
+  if (!(max_kpa > 0 && max_kpa < 1000)) throw std::invalid_argument("PressOptions.max_kpa must be in (0, 1000)");
+  if (repetitions < 1) throw std::invalid_argument("PressOptions.repetitions must be >= 1");
+  if (frames < 1) throw std::invalid_argument("PressOptions.frames must be >= 1");
+  if (!(px_per_mm > 0)) throw std::invalid_argument("PressOptions.px_per_mm must be > 0");
+  if (!(trial_jitter >= 0 && trial_jitter < 1)) throw std::invalid_argument("PressOptions.trial_jitter must be in [0, 1)");
+  if (!(offset_sd >= 0 && offset_sd < 1)) throw std::invalid_argument("PressOptions.offset_sd must be in [0, 1)");
+}
+
+std::vector<PressTrial> simulate_presses(const SkinParameters& skin, const CameraSettings& cam, const PressOptions& o,
+                                         std::uint64_t seed) {
+  skin.validate();
+  cam.validate();
+  o.validate();
+  const double kg = skin.absorption[1];
+  std::map<std::pair<int, int>, double> noiseless;  // (diameter index, level) → y
+  for (std::size_t di = 0; di < o.diameters_mm.size(); ++di) {
+    const double r = o.diameters_mm[di] / 2;
+    for (int l = 0; l < o.levels; ++l) {
+      const double pm = o.max_kpa * l / (o.levels - 1);
+      double y = kg * steady_blood_loss(skin, pm);
+      if (o.profile == PressOptions::Profile::sneddon && pm > 0) {
+        const contact::FlatPunch punch{r, pm * kPi * r * r / 1000, 3.0};
+        ChartField field;
+        const double h = std::min(0.05, r / 20), m = r + 4 * skin.blur_sigma_mm + 1.0;
+        field.grid = ChartGrid::covering(Vec2(-m, -m), Vec2(m, m), h);
+        field.value.resize(field.grid.size());
+        for (int j = 0; j < field.grid.height; ++j)
+          for (int i = 0; i < field.grid.width; ++i)
+            field.value[field.grid.index(i, j)] = static_cast<float>(punch.pressure_kpa(field.grid.uv(i, j).norm()));
+        const ChartField drive = skin_drive(skin, field);
+        double sum = 0;
+        int n = 0;
+        for (int j = 0; j < field.grid.height; ++j)
+          for (int i = 0; i < field.grid.width; ++i)
+            if (field.grid.uv(i, j).norm() < r) sum += kg * steady_blood_loss(skin, drive.value[field.grid.index(i, j)]), ++n;
+        y = sum / n;
+      }
+      noiseless[{static_cast<int>(di), l}] = y;
+    }
+  }
+  std::mt19937_64 rng(seed ^ 0x7072657373ULL);
+  std::normal_distribution<double> normal(0, 1);
+  std::vector<PressTrial> trials;
+  int trial = 0;
+  for (int rep = 0; rep < o.repetitions; ++rep)
+    for (std::size_t di = 0; di < o.diameters_mm.size(); ++di)
+      for (int l = 0; l < o.levels; ++l) {
+        PressTrial t;
+        t.trial = ++trial;
+        t.diameter_mm = o.diameters_mm[di];
+        t.mean_pressure_kpa = o.max_kpa * l / (o.levels - 1);
+        t.force_n = t.mean_pressure_kpa * kPi * 0.25 * t.diameter_mm * t.diameter_mm / 1000;
+        t.signal_noiseless = noiseless[{static_cast<int>(di), l}];
+        t.signal = t.signal_noiseless * (1 + o.trial_jitter * normal(rng)) + o.offset_sd * normal(rng) +
+                   press_signal_sd(skin, cam, o, t.diameter_mm) * normal(rng);
+        trials.push_back(t);
+      }
+  return trials;
+}
+
+void write_presses_csv(const std::vector<PressTrial>& trials, const std::filesystem::path& path) {
+  std::ostringstream s;
+  s.precision(9);
+  s << "trial,indenter_diameter_mm,force_n,mean_pressure_kpa,signal\n";
+  for (const PressTrial& t : trials)
+    s << t.trial << ',' << t.diameter_mm << ',' << t.force_n << ',' << t.mean_pressure_kpa << ',' << t.signal << '\n';
+  write_file_atomically(path, s.str());
+}
+
+void write_presses_truth(const std::filesystem::path& path, const SkinParameters& skin, const CameraSettings& cam,
+                         const PressOptions& o, std::uint64_t seed) {
+  json sd = json::object();
+  for (double d : o.diameters_mm) {
+    std::ostringstream k;
+    k << d;
+    sd[k.str()] = press_signal_sd(skin, cam, o, d);
+  }
+  const json j = {{"schema", "clearfit.presses-truth/1"},
+                  {"seed", seed},
+                  {"skin", skin_json(skin)},
+                  {"calibration", calibration_json(skin)},
+                  {"presses",
+                   {{"diameters_mm", o.diameters_mm},
+                    {"levels", o.levels},
+                    {"max_kpa", o.max_kpa},
+                    {"repetitions", o.repetitions},
+                    {"profile", o.profile == PressOptions::Profile::sneddon ? "sneddon" : "uniform"},
+                    {"frames", o.frames},
+                    {"px_per_mm", o.px_per_mm},
+                    {"trial_jitter", o.trial_jitter},
+                    {"offset_sd", o.offset_sd},
+                    {"sensor_signal_sd_by_diameter", sd}}},
+                  {"note", "profile uniform: signal = y_max·Ψ((p − p50)/w)·(1 + jitter) + noise exactly; sneddon: the "
+                           "disc carries Sneddon's pressure (capped at 3·p_mean) through the skin drive, so the "
+                           "signal at a mean pressure departs from the logistic"}};
+  write_file_atomically(path, j.dump(2) + "\n");
+}
+
+void write_truth(const std::filesystem::path& dir, const PressureFieldSpec& spec, const PressureTruth& truth,
+                 const SkinParameters& skin, const CameraSettings& cam, const Timeline& tl, const CaptureSummary& cap,
+                 VideoFormat format, cv::Size size, std::uint64_t seed,
+                 const std::vector<std::pair<std::string, std::string>>& inputs) {
+  const ChartGrid& g = truth.pressure.grid;
+  json sources = json::array();
+  for (std::size_t k = 0; k < spec.sources.size(); ++k) {
+    const PressureSource& s = spec.sources[k];
+    json j = {{"name", s.name}, {"type", s.kind_name()}, {"center_uv_mm", vec(truth.source_uv_mm[k])}};
+    j["center_part_mm"] = truth.source_part_mm[k] ? vec(*truth.source_part_mm[k]) : json(nullptr);
+    if (s.kind == PressureSource::Kind::gaussian) j["peak_kpa"] = s.peak_kpa, j["sigma_mm"] = s.sigma_mm;
+    if (s.kind == PressureSource::Kind::punch)
+      j["radius_mm"] = s.radius_mm, j["force_n"] = s.force_n, j["rim_cap_ratio"] = s.rim_cap_ratio,
+      j["mean_pressure_kpa"] = contact::mean_pressure_kpa(s.force_n, s.radius_mm);
+    if (s.kind == PressureSource::Kind::hertz) {
+      const contact::HertzSphere h{s.sphere_radius_mm, s.force_n, s.e_star_kpa};
+      j["sphere_radius_mm"] = s.sphere_radius_mm, j["force_n"] = s.force_n, j["e_star_kpa"] = s.e_star_kpa,
+      j["contact_radius_mm"] = h.contact_radius_mm(), j["peak_pressure_kpa"] = h.peak_pressure_kpa();
+    }
+    sources.push_back(j);
+  }
+  json hotspots = json::array();
+  for (const Hotspot& h : truth.hotspots)
+    hotspots.push_back({{"centroid_uv_mm", vec(h.centroid_uv_mm)},
+                        {"centroid_part_mm", h.centroid_part_mm ? vec(*h.centroid_part_mm) : json(nullptr)},
+                        {"peak_kpa", h.peak_kpa},
+                        {"area_ge_5_5_kpa_mm2", h.area_above_5_5_mm2},
+                        {"area_ge_4_3_kpa_mm2", h.area_above_4_3_mm2}});
+  json phases = json::array();
+  if (tl.single_video) {
+    phases.push_back({{"phase", "baseline"}, {"file", cap.files[0]}, {"first_frame", 0}, {"frames", cap.baseline_frames}});
+    phases.push_back({{"phase", "worn"}, {"file", cap.files[0]}, {"first_frame", cap.baseline_frames}, {"frames", cap.press_frames}});
+  } else {
+    phases.push_back({{"phase", "baseline"}, {"file", cap.files[0]}, {"first_frame", 0}, {"frames", cap.baseline_frames}});
+    phases.push_back({{"phase", "worn"}, {"file", cap.files[1]}, {"first_frame", 0}, {"frames", cap.press_frames}});
+  }
+  json shifts = json::array();
+  for (const Vec2& s : cap.shift_px) shifts.push_back(vec(s));
+  json in = json::object();
+  for (const auto& [k, v] : inputs) in[k] = v;
+  const json j = {
+      {"schema", "clearfit.simulation-truth/1"},
+      {"seed", seed},
+      {"inputs", in},
+      {"chart_grid", {{"texel_mm", g.texel_mm}, {"uv_origin_mm", vec(g.uv_origin)}, {"width", g.width}, {"height", g.height}}},
+      {"files", {{"pressure", "truth_pressure.npy"}, {"vertex_pressure", "truth_vertex_pressure.npy"}, {"captures", cap.files}}},
+      {"pressure_sources", sources},
+      {"user_map", spec.user_map.has_value()},
+      {"hotspots", hotspots},
+      {"hotspot_definition", "8-connected regions of truth pressure >= 4.3 kPa; centroid pressure-weighted; sorted by peak"},
+      {"skin", skin_json(skin)},
+      {"calibration", calibration_json(skin)},
+      {"video",
+       {{"format", to_string(format)},
+        {"fps", tl.fps},
+        {"width", size.width},
+        {"height", size.height},
+        {"single_video", tl.single_video},
+        {"baseline_frames", cap.baseline_frames},
+        {"press_frames", cap.press_frames},
+        {"press_start_frame", cap.press_start_frame},
+        {"press_start_s", cap.baseline_frames / tl.fps},
+        {"phases", phases},
+        {"blood_loss_lag", "B(t) = B_ss·(1 − exp(−(t − t_press + 1/fps)/tau_on_s)) from the first worn frame"}}},
+      {"camera", camera_json(cam)},
+      {"motion", {{"step_px", cam.motion_step_px}, {"shift_px_per_frame", shifts},
+                  {"note", "image shift of the skin at each frame (baseline frames first), px"}}},
+      {"timings_ms", {{"render", cap.render_ms}, {"write_wait", cap.write_ms}}}};
+  write_npy_float32(dir / "truth_pressure.npy", {static_cast<std::size_t>(g.height), static_cast<std::size_t>(g.width)},
+                    truth.pressure.value.data());
+  write_npy_float32(dir / "truth_vertex_pressure.npy", {truth.vertex_pressure.size()}, truth.vertex_pressure.data());
+  write_file_atomically(dir / "truth.json", j.dump(2) + "\n");
+}
+
+}  // namespace clearfit::sim

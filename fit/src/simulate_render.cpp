@@ -1,0 +1,381 @@
+// Rendering synthetic captures: per-pixel static terms once, then per frame
+// the blanching, pulse, flicker, noise and sRGB encoding (see simulate.hpp).
+#include <clearfit/error.hpp>
+#include <clearfit/fit/simulate.hpp>
+#include <clearfit/fit/srgb.hpp>
+
+#include <opencv2/imgcodecs.hpp>
+#include <opencv2/videoio.hpp>
+#include <tbb/parallel_for.h>
+
+#include <chrono>
+#include <cmath>
+#include <future>
+#include <numbers>
+#include <random>
+#include <sstream>
+
+namespace clearfit::sim {
+
+namespace {
+constexpr double kTwoPi = 2 * std::numbers::pi;
+double ms_since(std::chrono::steady_clock::time_point t0) {
+  return std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+}
+std::uint64_t splitmix(std::uint64_t x) {
+  x += 0x9e3779b97f4a7c15ULL;
+  x = (x ^ (x >> 30)) * 0xbf58476d1ce4e5b9ULL;
+  x = (x ^ (x >> 27)) * 0x94d049bb133111ebULL;
+  return x ^ (x >> 31);
+}
+constexpr int kLutSize = 65536;
+constexpr std::size_t kNoisePool = std::size_t(1) << 22;
+}  // namespace
+
+void CameraSettings::validate() const {
+  auto check = [](bool ok, const char* field, double v, const char* rule) {
+    if (!ok) {
+      std::ostringstream s;
+      s << "CameraSettings." << field << " = " << v << ": " << rule;
+      throw std::invalid_argument(s.str());
+    }
+  };
+  check(exposure > 0 && std::isfinite(exposure), "exposure", exposure, "must be > 0");
+  check(full_well_e >= 1 && std::isfinite(full_well_e), "full_well_e", full_well_e, "must be >= 1");
+  check(read_noise_e >= 0 && std::isfinite(read_noise_e), "read_noise_e", read_noise_e, "must be >= 0");
+  check(falloff >= 0 && falloff < 1, "falloff", falloff, "must be in [0, 1)");
+  check(specular_peak >= 0 && std::isfinite(specular_peak), "specular_peak", specular_peak, "must be >= 0");
+  check(specular_sigma > 0 && std::isfinite(specular_sigma), "specular_sigma", specular_sigma, "must be > 0");
+  check(background >= 0 && background <= 1, "background", background, "must be in [0, 1]");
+  check(flicker_amplitude >= 0 && flicker_amplitude < 1, "flicker_amplitude", flicker_amplitude, "must be in [0, 1)");
+  check(flicker_hz > 0 && std::isfinite(flicker_hz), "flicker_hz", flicker_hz, "must be > 0");
+  check(motion_step_px >= 0 && motion_step_px <= 5, "motion_step_px", motion_step_px, "must be in [0, 5]");
+  check(supersample >= 1 && supersample <= 4, "supersample", supersample, "must be 1..4");
+  check(texture_mm > 0 && std::isfinite(texture_mm), "texture_mm", texture_mm, "must be > 0");
+}
+
+int Timeline::baseline_frames() const { return static_cast<int>(std::lround(baseline_s * fps)); }
+int Timeline::press_frames() const { return static_cast<int>(std::lround(press_s * fps)); }
+void Timeline::validate() const {
+  if (!(fps > 0 && fps <= 1000)) throw std::invalid_argument("Timeline.fps must be in (0, 1000]");
+  if (!(baseline_s > 0 && press_s > 0) || baseline_frames() < 1 || press_frames() < 1)
+    throw std::invalid_argument("Timeline: baseline_s and press_s must give at least one frame each");
+}
+
+CaptureRenderer::CaptureRenderer(const RefractionMap& map, const ChartField& drive, const SkinParameters& skin,
+                                 const CameraSettings& camera, std::uint64_t seed)
+    : map_(map), skin_(skin), cam_(camera), seed_(seed), width_(map.width), height_(map.height) {
+  const auto t0 = std::chrono::steady_clock::now();
+  skin_.validate();
+  cam_.validate();
+  if (map.chart_uv.size() != static_cast<std::size_t>(width_) * height_ || map.transmittance.size() != map.chart_uv.size())
+    throw std::invalid_argument("CaptureRenderer: the refraction map has no chart coordinates (trace it with a chart)");
+  if (drive.value.size() != drive.grid.size() || drive.grid.size() == 0)
+    throw std::invalid_argument("CaptureRenderer: empty drive field");
+  // Fine skin texture over the drive's grid (plus a margin for samples at its edge).
+  const ChartGrid& dg = drive.grid;
+  const Vec2 lo = dg.uv_origin - Vec2::Constant(dg.texel_mm), hi = dg.uv(dg.width - 1, dg.height - 1) + Vec2::Constant(dg.texel_mm);
+  double tex_mm = cam_.texture_mm;
+  const double area = (hi - lo).prod();
+  if (area / (tex_mm * tex_mm) > 40e6) tex_mm = std::sqrt(area / 40e6);  // at most ~40 M texels (320 MB)
+  tex_grid_ = ChartGrid::covering(lo, hi, tex_mm);
+  tex_m_.resize(tex_grid_.size());
+  tex_b_.resize(tex_grid_.size());
+  const SkinTexture texture(skin_);
+  tbb::parallel_for(0, tex_grid_.height, [&](int j) {
+    for (int i = 0; i < tex_grid_.width; ++i) {
+      const Vec2 uv = tex_grid_.uv(i, j);
+      tex_m_[tex_grid_.index(i, j)] = static_cast<float>(texture.modulation(uv));
+      const float s = drive.sample(uv);
+      tex_b_[tex_grid_.index(i, j)] = static_cast<float>(steady_blood_loss(skin_, std::isfinite(s) ? s : 0.0));
+    }
+  });
+  // Gaussian noise pool, in deterministic chunks (each its own generator), filled in parallel.
+  // Sized to the image (2^18..2^22 values): each row takes a random window of it per frame and channel.
+  std::size_t pool = std::size_t(1) << 18;
+  while (pool < kNoisePool && pool < static_cast<std::size_t>(width_) * height_ / 2) pool *= 2;
+  noise_pool_.resize(pool);
+  constexpr std::size_t kChunk = 1 << 16;
+  tbb::parallel_for(std::size_t(0), pool / kChunk, [&](std::size_t c) {
+    std::mt19937 rng(static_cast<std::uint32_t>(splitmix(seed ^ 0x6e6f697365ULL ^ splitmix(c))));
+    std::normal_distribution<float> normal(0.f, 1.f);
+    for (std::size_t k = c * kChunk; k < (c + 1) * kChunk; ++k) noise_pool_[k] = normal(rng);
+  });
+  srgb_lut_.resize(kLutSize);
+  for (int i = 0; i < kLutSize; ++i)
+    srgb_lut_[i] = static_cast<std::uint8_t>(std::lround(255 * srgb::from_linear(double(i) / (kLutSize - 1))));
+  row_span_.assign(height_, {1, 0});
+  for (int y = 0; y < height_; ++y)
+    for (int x = 0; x < width_; ++x)
+      if (map.status[map.index(x, y)] == PixelStatus::valid) {
+        if (row_span_[y].first > row_span_[y].second) row_span_[y].first = x;
+        row_span_[y].second = x;
+      }
+  pixels_.resize(static_cast<std::size_t>(width_) * height_);
+  tbb::parallel_for(0, height_, [&](int y) {
+    for (int x = 0; x < width_; ++x) pixels_[static_cast<std::size_t>(y) * width_ + x] = static_pixel(x, y, Vec2::Zero());
+  });
+  for (const Pixel& p : pixels_) skin_pixels_ += p.q[0] > 0;
+  setup_ms_ = ms_since(t0);
+}
+
+
+// Moments Σ T·m·B^n / n² over the sub-pixel samples of the pixel centred at (px, py).
+void CaptureRenderer::moments(double px, double py, float q[4]) const {
+  const int n = cam_.supersample;
+  double acc[4] = {0, 0, 0, 0};
+  for (int b = 0; b < n; ++b)
+    for (int a = 0; a < n; ++a) {
+      const double sx = px + (a + 0.5) / n - 0.5, sy = py + (b + 0.5) / n - 0.5;
+      const int x0 = static_cast<int>(std::floor(sx)), y0 = static_cast<int>(std::floor(sy));
+      const double tx = sx - x0, ty = sy - y0;
+      double wsum = 0, tsum = 0, best_w = -1;
+      Vec2 uv = Vec2::Zero(), best_uv = Vec2::Zero(), first = Vec2::Constant(NAN);
+      bool seam = false;
+      for (int dy = 0; dy < 2; ++dy)
+        for (int dx = 0; dx < 2; ++dx) {
+          const int x = x0 + dx, y = y0 + dy;
+          if (x < 0 || y < 0 || x >= width_ || y >= height_) continue;
+          const std::size_t k = map_.index(x, y);
+          const Eigen::Vector2f c = map_.chart_uv[k];
+          if (map_.status[k] != PixelStatus::valid || !c.allFinite()) continue;
+          const double w = (dx ? tx : 1 - tx) * (dy ? ty : 1 - ty);
+          const Vec2 cd = c.cast<double>();
+          if (!first.allFinite()) first = cd;
+          else if ((cd - first).norm() > 0.5) seam = true;  // a chart seam between the taps
+          wsum += w, uv += w * cd, tsum += w * map_.transmittance[k];
+          if (w > best_w) best_w = w, best_uv = cd;
+        }
+      if (wsum < 0.5) continue;  // background sample
+      uv = seam ? best_uv : Vec2(uv / wsum);
+      const double T = tsum / wsum;
+      // Bilinear texture read.
+      const double fx = (uv.x() - tex_grid_.uv_origin.x()) / tex_grid_.texel_mm;
+      const double fy = (uv.y() - tex_grid_.uv_origin.y()) / tex_grid_.texel_mm;
+      const int i0 = std::clamp(static_cast<int>(std::floor(fx)), 0, tex_grid_.width - 2);
+      const int j0 = std::clamp(static_cast<int>(std::floor(fy)), 0, tex_grid_.height - 2);
+      const double u = std::clamp(fx - i0, 0.0, 1.0), v = std::clamp(fy - j0, 0.0, 1.0);
+      const std::size_t k00 = tex_grid_.index(i0, j0), k01 = k00 + tex_grid_.width;
+      const double m = (1 - v) * ((1 - u) * tex_m_[k00] + u * tex_m_[k00 + 1]) + v * ((1 - u) * tex_m_[k01] + u * tex_m_[k01 + 1]);
+      const double B = (1 - v) * ((1 - u) * tex_b_[k00] + u * tex_b_[k00 + 1]) + v * ((1 - u) * tex_b_[k01] + u * tex_b_[k01 + 1]);
+      const double tm = T * m;
+      acc[0] += tm, acc[1] += tm * B, acc[2] += tm * B * B, acc[3] += tm * B * B * B;
+    }
+  for (int k = 0; k < 4; ++k) q[k] = static_cast<float>(acc[k] / (n * n));
+}
+
+CaptureRenderer::Pixel CaptureRenderer::static_pixel(int x, int y, const Vec2& shift, bool with_skin) const {
+  Pixel p{};
+  const double px = x - shift.x(), py = y - shift.y();  // the skin moves by +shift in the image
+  if (with_skin) moments(px, py, p.q);
+  // Skin fraction of the samples (transmittance aside), for the background share.
+  const int n = cam_.supersample;
+  int skin = 0;
+  for (int b = 0; b < n && with_skin; ++b)
+    for (int a = 0; a < n; ++a) {
+      const double sx = px + (a + 0.5) / n - 0.5, sy = py + (b + 0.5) / n - 0.5;
+      const int x0 = static_cast<int>(std::floor(sx)), y0 = static_cast<int>(std::floor(sy));
+      const double tx = sx - x0, ty = sy - y0;
+      double w = 0;
+      for (int dy = 0; dy < 2; ++dy)
+        for (int dx = 0; dx < 2; ++dx) {
+          const int xx = x0 + dx, yy = y0 + dy;
+          if (xx < 0 || yy < 0 || xx >= width_ || yy >= height_ || map_.status[map_.index(xx, yy)] != PixelStatus::valid) continue;
+          w += (dx ? tx : 1 - tx) * (dy ? ty : 1 - ty);
+        }
+      skin += w >= 0.5;
+    }
+  const double cx = 0.5 * (width_ - 1), cy = 0.5 * (height_ - 1);
+  const double r2 = ((px - cx) * (px - cx) + (py - cy) * (py - cy)) / (cx * cx + cy * cy + 1e-12);
+  const double illum = cam_.exposure * (1 - cam_.falloff * r2);
+  const double sxh = cam_.specular_center.x() * width_, syh = cam_.specular_center.y() * height_, sig = cam_.specular_sigma * width_;
+  const double spec = cam_.specular_peak * std::exp(-((px - sxh) * (px - sxh) + (py - syh) * (py - syh)) / (2 * sig * sig));
+  p.gain = static_cast<float>(illum);
+  p.additive = static_cast<float>(illum * cam_.background * (1 - double(skin) / (n * n)) + spec);
+  for (int c = 0; c < 3; ++c) {
+    const double level = std::max(0.0, illum * skin_.tone.reflectance[c] * p.q[0] + p.additive);
+    p.sigma[c] = static_cast<float>(std::sqrt(level * cam_.full_well_e + cam_.read_noise_e * cam_.read_noise_e) / cam_.full_well_e);
+  }
+  return p;
+}
+
+double CaptureRenderer::linear_green(int x, int y, double t_s, double h) const {
+  const Pixel& p = pixels_[static_cast<std::size_t>(y) * width_ + x];
+  const double g = pulse_waveform(t_s, skin_.pulse_hz), k = skin_.absorption[1];
+  const double s = h * (1 + skin_.pulse_amplitude * g);
+  double poly = 0, term = 1;
+  for (int n = 0; n < 4; ++n) poly += term * p.q[n], term *= k * s / (n + 1);
+  return p.gain * skin_.tone.reflectance[1] * std::exp(-k * skin_.pulse_amplitude * g) * poly + p.additive;
+}
+
+cv::Mat CaptureRenderer::render(double t_s, double h, const Vec2& shift, std::uint64_t frame) const {
+  cv::Mat out(height_, width_, CV_8UC3);
+  const double g = pulse_waveform(t_s, skin_.pulse_hz);
+  const double s = h * (1 + skin_.pulse_amplitude * g);
+  const double flick = 1 + cam_.flicker_amplitude * std::sin(kTwoPi * cam_.flicker_hz * t_s);
+  float e[3], c1[3], c2[3], c3[3];
+  for (int c = 0; c < 3; ++c) {
+    const double k = skin_.absorption[c], ks = k * s;
+    e[c] = static_cast<float>(flick * skin_.tone.reflectance[c] * std::exp(-k * skin_.pulse_amplitude * g));
+    c1[c] = static_cast<float>(ks), c2[c] = static_cast<float>(ks * ks / 2), c3[c] = static_cast<float>(ks * ks * ks / 6);
+  }
+  const bool moved = shift.squaredNorm() > 0;
+  const std::uint64_t fseed = splitmix(seed_ ^ splitmix(frame + 1));
+  tbb::parallel_for(tbb::blocked_range<int>(0, height_, 8), [&](const tbb::blocked_range<int>& rows) {
+    std::vector<Pixel> moved_row(moved ? width_ : 0);
+    for (int y = rows.begin(); y < rows.end(); ++y) {
+      if (moved) {
+        // Only pixels near the map's valid pixels of the rows the samples read can see skin.
+        int lo = width_, hi = -1;
+        const int yc = static_cast<int>(std::floor(y - shift.y()));
+        for (int yy = std::max(0, yc - 1); yy <= std::min(height_ - 1, yc + 2); ++yy)
+          if (row_span_[yy].first <= row_span_[yy].second) lo = std::min(lo, row_span_[yy].first), hi = std::max(hi, row_span_[yy].second);
+        const int pad = static_cast<int>(std::ceil(std::abs(shift.x()))) + 2;
+        for (int x = 0; x < width_; ++x) moved_row[x] = static_pixel(x, y, shift, x >= lo - pad && x <= hi + pad);
+      }
+      const Pixel* row = moved ? moved_row.data() : &pixels_[static_cast<std::size_t>(y) * width_];
+      std::uint8_t* o = out.ptr<std::uint8_t>(y);
+      const float* noise[3];
+      for (int c = 0; c < 3; ++c)
+        noise[c] = noise_pool_.data() + splitmix(fseed + 3 * static_cast<std::uint64_t>(y) + c) % (noise_pool_.size() - width_);
+      for (int x = 0; x < width_; ++x) {
+        const Pixel& p = row[x];
+        for (int c = 0; c < 3; ++c) {
+          const float poly = p.q[0] + c1[c] * p.q[1] + c2[c] * p.q[2] + c3[c] * p.q[3];
+          const float lin = flick * p.additive + p.gain * e[c] * poly + p.sigma[c] * noise[c][x];
+          const int idx = std::clamp(static_cast<int>(lin * (kLutSize - 1) + 0.5f), 0, kLutSize - 1);
+          o[3 * x + 2 - c] = srgb_lut_[idx];  // BGR
+        }
+      }
+    }
+  });
+  return out;
+}
+
+VideoFormat parse_video_format(const std::string& name) {
+  if (name == "ffv1") return VideoFormat::ffv1;
+  if (name == "huffyuv") return VideoFormat::huffyuv;
+  if (name == "mjpg") return VideoFormat::mjpg;
+  if (name == "png") return VideoFormat::png;
+  throw std::invalid_argument("unknown video format '" + name + "' (ffv1, huffyuv, mjpg, png)");
+}
+std::string to_string(VideoFormat f) {
+  switch (f) {
+    case VideoFormat::ffv1: return "ffv1";
+    case VideoFormat::huffyuv: return "huffyuv";
+    case VideoFormat::mjpg: return "mjpg";
+    case VideoFormat::png: return "png";
+  }
+  return "?";
+}
+std::string capture_name(const std::string& stem, VideoFormat f) {
+  switch (f) {
+    case VideoFormat::ffv1:
+    case VideoFormat::huffyuv: return stem + ".mkv";
+    case VideoFormat::mjpg: return stem + ".avi";
+    case VideoFormat::png: return stem;
+  }
+  return stem;
+}
+
+struct CaptureWriter::Video {
+  cv::VideoWriter writer;
+};
+
+CaptureWriter::CaptureWriter(const std::filesystem::path& path, VideoFormat format, double fps, cv::Size size)
+    : path_(path), format_(format) {
+  std::ostringstream temp_name;
+  temp_name << '.' << path.filename().string() << ".tmp" << splitmix(reinterpret_cast<std::uintptr_t>(this)) % 1000000
+            << (format == VideoFormat::png ? std::string() : path.extension().string());
+  temp_ = path.parent_path() / temp_name.str();
+  std::error_code ec;
+  if (format == VideoFormat::png) {
+    std::filesystem::create_directories(temp_, ec);
+    if (ec) throw InputError(path.string(), "", "cannot create the frame folder: " + ec.message());
+    return;
+  }
+  const int fourcc = format == VideoFormat::ffv1 ? cv::VideoWriter::fourcc('F', 'F', 'V', '1')
+                     : format == VideoFormat::huffyuv ? cv::VideoWriter::fourcc('H', 'F', 'Y', 'U')
+                                                      : cv::VideoWriter::fourcc('M', 'J', 'P', 'G');
+  video_ = std::make_unique<Video>();
+  const std::vector<int> params = format == VideoFormat::mjpg ? std::vector<int>{cv::VIDEOWRITER_PROP_QUALITY, 100} : std::vector<int>{};
+  const int api = format == VideoFormat::mjpg ? cv::CAP_OPENCV_MJPEG : cv::CAP_FFMPEG;
+  if (!video_->writer.open(temp_.string(), api, fourcc, fps, size, params))
+    throw InputError(path.string(), "", "OpenCV cannot open a " + to_string(format) + " video writer for it",
+                     "pick another simulation.video.format (png always works)");
+}
+
+CaptureWriter::~CaptureWriter() {
+  if (done_) return;
+  if (video_) video_->writer.release();
+  std::error_code ec;
+  std::filesystem::remove_all(temp_, ec);
+}
+
+void CaptureWriter::write(const cv::Mat& frame) {
+  if (format_ == VideoFormat::png) {
+    char name[32];
+    std::snprintf(name, sizeof name, "frame_%05d.png", frames_);
+    if (!cv::imwrite((temp_ / name).string(), frame, {cv::IMWRITE_PNG_COMPRESSION, 1}))
+      throw InputError((path_ / name).string(), "", "cannot write the frame");
+  } else {
+    video_->writer.write(frame);
+  }
+  ++frames_;
+}
+
+void CaptureWriter::finish() {
+  if (video_) video_->writer.release();
+  std::error_code ec;
+  if (std::filesystem::exists(path_)) std::filesystem::remove_all(path_, ec);
+  std::filesystem::rename(temp_, path_, ec);
+  if (ec) throw InputError(path_.string(), "", "cannot move the capture into place: " + ec.message());
+  done_ = true;
+}
+
+CaptureSummary render_captures(const CaptureRenderer& r, const SkinParameters& skin, const Timeline& tl,
+                               const CameraSettings& cam, VideoFormat format, const std::filesystem::path& dir,
+                               std::uint64_t seed, const std::function<void(int, int)>& progress) {
+  tl.validate();
+  CaptureSummary sum;
+  sum.baseline_frames = tl.baseline_frames();
+  sum.press_frames = tl.press_frames();
+  const int total = sum.baseline_frames + sum.press_frames;
+  sum.press_start_frame = tl.single_video ? sum.baseline_frames : 0;
+  std::mt19937_64 rng(splitmix(seed ^ 0x6d6f74696f6eULL));
+  std::normal_distribution<double> step(0, cam.motion_step_px);
+  Vec2 shift = Vec2::Zero();
+  for (int k = 0; k < total; ++k) {
+    if (k > 0 && cam.motion_step_px > 0) shift += Vec2(step(rng), step(rng));
+    sum.shift_px.push_back(shift);
+  }
+  const cv::Size size(r.width(), r.height());
+  std::vector<std::unique_ptr<CaptureWriter>> writers;
+  if (tl.single_video) {
+    sum.files = {capture_name("capture", format)};
+  } else {
+    sum.files = {capture_name("baseline", format), capture_name("worn", format)};
+  }
+  for (const auto& f : sum.files) writers.push_back(std::make_unique<CaptureWriter>(dir / f, format, tl.fps, size));
+  std::future<void> pending;
+  for (int k = 0; k < total; ++k) {
+    const double t = k / tl.fps, t_press = sum.baseline_frames / tl.fps;
+    const double h = k < sum.baseline_frames ? 0.0 : 1 - std::exp(-(t - t_press + 1 / tl.fps) / skin.tau_on_s);
+    auto t0 = std::chrono::steady_clock::now();
+    cv::Mat frame = r.render(t, h, sum.shift_px[k], static_cast<std::uint64_t>(k));
+    sum.render_ms += ms_since(t0);
+    t0 = std::chrono::steady_clock::now();
+    if (pending.valid()) pending.get();
+    sum.write_ms += ms_since(t0);
+    CaptureWriter* w = writers[tl.single_video || k < sum.baseline_frames ? 0 : 1].get();
+    pending = std::async(std::launch::async, [w, f = std::move(frame)] { w->write(f); });
+    if (progress) progress(k + 1, total);
+  }
+  const auto t0 = std::chrono::steady_clock::now();
+  if (pending.valid()) pending.get();
+  for (auto& w : writers) w->finish();
+  sum.write_ms += ms_since(t0);
+  return sum;
+}
+
+}  // namespace clearfit::sim
