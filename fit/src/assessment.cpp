@@ -163,6 +163,10 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
     a.pressure_sigma = {g, std::vector<float>(g.size(), kNaN)};
     a.pressure_status.assign(g.size(), static_cast<std::uint8_t>(PressureStatus::invalid));
     calibration->invert(a.signal.y.value, a.signal.sigma_y.value, a.pressure.value, a.pressure_sigma.value, a.pressure_status);
+    // Below detection is a measurement (less than the detection limit), shown and counted as 0 kPa;
+    // pressure_status keeps the flag. Unseen texels stay NaN.
+    for (std::size_t k = 0; k < g.size(); ++k)
+      if (a.pressure_status[k] == static_cast<std::uint8_t>(PressureStatus::below_detection)) a.pressure.value[k] = 0.f;
     long long seen = 0, below = 0, sat = 0, est = 0;
     double sum = 0;
     for (std::size_t k = 0; k < g.size(); ++k) {
@@ -183,10 +187,7 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
     if (a.saturated_fraction > 0)
       a.warnings.push_back(fmt(100 * a.saturated_fraction, 2) + " % of the seen skin is beyond the calibration's range (saturated): "
                            "the pressure there is at least the value shown");
-    // Below detection counts as 0 kPa for the hotspot search (it is below every threshold).
-    ChartField search = a.pressure;
-    for (std::size_t k = 0; k < g.size(); ++k)
-      if (a.pressure_status[k] == static_cast<std::uint8_t>(PressureStatus::below_detection)) search.value[k] = 0.f;
+    const ChartField& search = a.pressure;
     a.thresholds = o.thresholds_kpa;
     ho.thresholds = a.thresholds;
     a.hotspots = find_hotspots(search, &a.pressure_sigma, &saturated, a.raster, ho, &a.hotspot_labels);

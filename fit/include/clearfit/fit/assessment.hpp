@@ -64,7 +64,7 @@ struct Assessment {
   BlanchingSignal signal;
   ChartRaster raster;
   bool calibrated = false;
-  ChartField pressure, pressure_sigma;       ///< kPa; empty grids without a calibration
+  ChartField pressure, pressure_sigma;       ///< kPa (0 below detection, NaN unseen); empty without a calibration
   std::vector<std::uint8_t> pressure_status; ///< PressureStatus per texel (invalid where unseen)
   double below_detection_fraction = 0, saturated_fraction = 0;  ///< of seen texels
   double peak_kpa = 0, mean_kpa = 0;         ///< over seen texels with an estimate
