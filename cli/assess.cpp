@@ -33,35 +33,30 @@ struct AssessOpts {
   PartOptions part;
 };
 
-template <class T>
-void take(const CLI::App& sub, const char* option, T& field, const std::optional<T>& value) {
-  if (value && sub.count(option) == 0) field = *value;
-}
-
 /// The scene's captures / calibration / assess sections.
 void read_assess_sections(const SceneFile& sc, const CLI::App& sub, AssessOpts& o) {
   SceneReader r(sc.path);
   const YAML::Node& root = sc.root;
   if (const YAML::Node c = root["captures"]) {
     r.only_keys(c, "captures", {"baseline", "worn", "both", "window_frames", "max_motion_px", "motion_compensation"});
-    take(sub, "--baseline", o.baseline, r.path(c, "baseline", "captures.baseline"));
-    take(sub, "--worn", o.worn, r.path(c, "worn", "captures.worn"));
-    take(sub, "--both", o.both, r.path(c, "both", "captures.both"));
-    take(sub, "--window-frames", o.window_frames, r.get<int>(c, "window_frames", "captures.window_frames", "a whole number of frames"));
-    take(sub, "--max-motion-px", o.max_motion_px, r.get<double>(c, "max_motion_px", "captures.max_motion_px", "a number of pixels"));
+    take_from_scene(sub, "--baseline", o.baseline, r.path(c, "baseline", "captures.baseline"));
+    take_from_scene(sub, "--worn", o.worn, r.path(c, "worn", "captures.worn"));
+    take_from_scene(sub, "--both", o.both, r.path(c, "both", "captures.both"));
+    take_from_scene(sub, "--window-frames", o.window_frames, r.get<int>(c, "window_frames", "captures.window_frames", "a whole number of frames"));
+    take_from_scene(sub, "--max-motion-px", o.max_motion_px, r.get<double>(c, "max_motion_px", "captures.max_motion_px", "a number of pixels"));
     if (const auto m = r.get<bool>(c, "motion_compensation", "captures.motion_compensation", "true or false"); m && sub.count("--no-motion-compensation") == 0)
       o.no_motion = !*m;
   }
   if (const YAML::Node c = root["calibration"]) {
     r.only_keys(c, "calibration", {"pressure", "person"});
-    take(sub, "--calibration", o.calibration, r.path(c, "pressure", "calibration.pressure"));
-    take(sub, "--person", o.person, r.get<std::string>(c, "person", "calibration.person", "a person's id"));
+    take_from_scene(sub, "--calibration", o.calibration, r.path(c, "pressure", "calibration.pressure"));
+    take_from_scene(sub, "--person", o.person, r.get<std::string>(c, "person", "calibration.person", "a person's id"));
   }
   if (const YAML::Node a = root["assess"]) {
     r.only_keys(a, "assess", {"smoothing_mm", "thresholds_kpa", "reference_uv_mm", "reference_radius_mm", "min_hotspot_area_mm2"});
-    take(sub, "--smoothing-mm", o.smoothing_mm, r.get<double>(a, "smoothing_mm", "assess.smoothing_mm", "a length in mm"));
-    take(sub, "--min-hotspot-area-mm2", o.min_area_mm2, r.get<double>(a, "min_hotspot_area_mm2", "assess.min_hotspot_area_mm2", "an area in mm²"));
-    take(sub, "--reference-radius-mm", o.reference_radius_mm, r.get<double>(a, "reference_radius_mm", "assess.reference_radius_mm", "a length in mm"));
+    take_from_scene(sub, "--smoothing-mm", o.smoothing_mm, r.get<double>(a, "smoothing_mm", "assess.smoothing_mm", "a length in mm"));
+    take_from_scene(sub, "--min-hotspot-area-mm2", o.min_area_mm2, r.get<double>(a, "min_hotspot_area_mm2", "assess.min_hotspot_area_mm2", "an area in mm²"));
+    take_from_scene(sub, "--reference-radius-mm", o.reference_radius_mm, r.get<double>(a, "reference_radius_mm", "assess.reference_radius_mm", "a length in mm"));
     auto numbers = [&](const char* key, const char* full, std::vector<double>& out, const char* option, std::size_t count) {
       const YAML::Node n = a[key];
       if (!n || sub.count(option) > 0) return;
@@ -79,8 +74,8 @@ void read_assess_sections(const SceneFile& sc, const CLI::App& sub, AssessOpts& 
     numbers("thresholds_kpa", "assess.thresholds_kpa", o.thresholds_kpa, "--thresholds-kpa", 0);
     numbers("reference_uv_mm", "assess.reference_uv_mm", o.reference_uv, "--reference-uv-mm", 2);
   }
-  take(sub, "--out", o.out, sc.out_folder);
-  take(sub, "--texel-mm", o.texel_mm, sc.texel_mm);
+  take_from_scene(sub, "--out", o.out, sc.out_folder);
+  take_from_scene(sub, "--texel-mm", o.texel_mm, sc.texel_mm);
 }
 
 std::string fmt(double v, int digits = 1) {

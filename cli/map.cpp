@@ -64,9 +64,7 @@ Run add_map(CLI::App& app) {
       // Scene values fill what the command line did not give.
       const SceneFile sc = read_scene(o->scene);
       take_scene_part_options(sc, *sub, o->part);
-      auto take = [&](const char* option, auto& field, const auto& value) {
-        if (value && sub->count(option) == 0) field = *value;
-      };
+      auto take = [&](const char* option, auto& field, const auto& value) { take_from_scene(*sub, option, field, value); };
       take("--out", o->out, sc.out_map);
       take("--stats", o->stats, sc.out_stats);
       take("--inverse", o->inverse, sc.out_inverse);

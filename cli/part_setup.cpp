@@ -46,9 +46,7 @@ void add_part_options(CLI::App& sub, PartOptions& o) {
 }
 
 void take_scene_part_options(const SceneFile& sc, const CLI::App& sub, PartOptions& o) {
-  auto take = [&](const char* option, auto& field, const auto& value) {
-    if (value && sub.count(option) == 0) field = *value;
-  };
+  auto take = [&](const char* option, auto& field, const auto& value) { take_from_scene(sub, option, field, value); };
   take("--mesh", o.mesh, sc.mesh);
   take("--units", o.mesh_opt.units, sc.units);
   take("--camera", o.camera, sc.camera);

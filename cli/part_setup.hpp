@@ -27,6 +27,12 @@ struct PartOptions {
   double ior = 1.49, medium_ior = 1.0, skin_ior = 1.4;
 };
 
+/// Sets `field` from a scene value when the command line did not give `option`.
+template <class T, class V>
+void take_from_scene(const CLI::App& sub, const char* option, T& field, const std::optional<V>& value) {
+  if (value && sub.count(option) == 0) field = *value;
+}
+
 /// Registers --mesh --units --contact-* --camera --pose --ior --medium-ior
 /// --skin-ior --normals --mode --grid-step --tolerance-um --chart --cache --no-cache.
 void add_part_options(CLI::App& sub, PartOptions& o);

@@ -250,7 +250,7 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
         cv::Mat warp = (cv::Mat_<float>(2, 3) << 1, 0, static_cast<float>(start.x() / 2), 0, 1, static_cast<float>(start.y() / 2));
         try {
           cv::findTransformECC(reference.patch, g, warp, cv::MOTION_TRANSLATION,
-                               cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 20, 1e-3), cv::noArray(), 1);
+                               cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 10, 5e-3), cv::noArray(), 1);
           shift = 2.0 * Vec2(warp.at<float>(0, 2), warp.at<float>(1, 2));
         } catch (const cv::Exception&) {
           shift = Vec2::Constant(std::numeric_limits<double>::quiet_NaN());
@@ -284,14 +284,31 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
         double block[8] = {};
         int saturated = 0;
         long long code = 0;
-        for (int x = 0; x < roi.width; ++x) {
-          const int sx = std::clamp(roi.x + x + d.x, 0, info.width - 1);
-          const cv::Vec3b& p = src[sx];
-          const float v = lut[p[1]];
-          dst[x] += v;
-          block[x * 8 / roi.width] += v;
-          saturated += (p[0] == 255) | (p[1] == 255) | (p[2] == 255);
-          code += p[1];
+        // Eight column blocks; inside each, pixels whose source lies in the image need no clamp.
+        for (int b = 0; b < 8; ++b) {
+          const int x0 = (roi.width * b + 7) / 8, x1 = (roi.width * (b + 1) + 7) / 8;  // x * 8 / width == b
+          const int lo = std::clamp(-(roi.x + d.x), x0, x1), hi = std::clamp(info.width - (roi.x + d.x), lo, x1);
+          float sum = 0.f;
+          auto add = [&](int x, int sx) {
+            const std::uint8_t g = src[sx][1];
+            const float v = lut[g];
+            dst[x] += v;
+            sum += v;
+            saturated += g == 255;
+            code += g;
+          };
+          for (int x = x0; x < lo; ++x) add(x, 0);
+          const cv::Vec3b* row = src + roi.x + d.x;
+          for (int x = lo; x < hi; ++x) {
+            const std::uint8_t g = row[x][1];
+            const float v = lut[g];
+            dst[x] += v;
+            sum += v;
+            saturated += g == 255;
+            code += g;
+          }
+          for (int x = hi; x < x1; ++x) add(x, info.width - 1);
+          block[b] = sum;
         }
         std::copy(block, block + 8, row_block_sum.begin() + static_cast<std::ptrdiff_t>(y) * 8);
         row_saturated[y] = saturated;

@@ -3,6 +3,7 @@
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/error.hpp>
 #include <clearfit/fit/contact_mechanics.hpp>
+#include <clearfit/fit/hotspots.hpp>
 #include <clearfit/fit/simulate.hpp>
 #include <clearfit/npy.hpp>
 
@@ -115,22 +116,9 @@ PressureTruth make_pressure_truth(const Mesh& mesh, const ContactSurface& contac
   PressureTruth t;
   const ChartGrid g = ChartGrid::covering(chart.uv_min, chart.uv_max, spec.texel_mm);
   // Texels whose centre lies on a charted contact face.
+  const ChartRaster raster = rasterize_chart(mesh, chart, g);
   std::vector<char> inside(g.size(), 0);
-  for (int f : chart.faces) {
-    const auto& v = mesh.faces[f];
-    const Vec2 a = chart.uv[v[0]], b = chart.uv[v[1]], c = chart.uv[v[2]];
-    if (!a.allFinite() || !b.allFinite() || !c.allFinite()) continue;
-    const Vec2 lo = a.cwiseMin(b).cwiseMin(c), hi = a.cwiseMax(b).cwiseMax(c);
-    const int i0 = std::max(0, static_cast<int>(std::floor((lo.x() - g.uv_origin.x()) / g.texel_mm)));
-    const int i1 = std::min(g.width - 1, static_cast<int>(std::ceil((hi.x() - g.uv_origin.x()) / g.texel_mm)));
-    const int j0 = std::max(0, static_cast<int>(std::floor((lo.y() - g.uv_origin.y()) / g.texel_mm)));
-    const int j1 = std::min(g.height - 1, static_cast<int>(std::ceil((hi.y() - g.uv_origin.y()) / g.texel_mm)));
-    for (int j = j0; j <= j1; ++j)
-      for (int i = i0; i <= i1; ++i) {
-        const auto w = barycentric2(g.uv(i, j), a, b, c);
-        if (w && w->minCoeff() >= -1e-9) inside[g.index(i, j)] = 1;
-      }
-  }
+  for (std::size_t k = 0; k < g.size(); ++k) inside[k] = raster.face[k] >= 0;
   for (const PressureSource& s : spec.sources) {
     if (s.center_uv_mm) {
       t.source_uv_mm.push_back(*s.center_uv_mm);

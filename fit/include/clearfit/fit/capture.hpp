@@ -86,7 +86,7 @@ struct CaptureSums {
   std::vector<Vec2> shift_px;          ///< per frame: content displacement against the reference, px
   std::vector<cv::Point> applied_shift;  ///< per frame: integer shift undone while accumulating
   std::vector<std::array<float, 64>> blocks;  ///< per frame: mean linear green of 8×8 blocks of the roi
-  std::vector<float> saturated_fraction;      ///< per frame: roi pixels with a channel at 255
+  std::vector<float> saturated_fraction;      ///< per frame: roi pixels whose green is 255
   std::vector<float> mean_code;               ///< per frame: mean 8-bit green code over the roi
   cv::Mat last_frame;                  ///< the last frame read (BGR8, full image), for pictures
   double read_ms = 0, work_ms = 0;     ///< time waiting for decoded frames / accumulating
