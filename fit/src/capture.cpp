@@ -17,6 +17,7 @@
 #include <optional>
 #include <sstream>
 #include <tbb/parallel_for.h>
+#include <tbb/task_group.h>
 #include <thread>
 
 namespace clearfit {
@@ -153,7 +154,7 @@ class FrameQueue {
         std::unique_lock lock(mutex_);
         cv_.wait(lock, [&] { return queue_.size() < 4 || stop_; });
         if (stop_) break;
-        queue_.emplace_back(frame.clone(), reader_.frame_name());
+        queue_.emplace_back(std::move(frame), reader_.frame_name());  // each read fills a fresh Mat: no copy
         cv_.notify_all();
       }
     } catch (...) {
@@ -234,8 +235,12 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
     if (!queue.pop(frame, name)) break;
     sums.read_ms += ms_since(t_wait);
     const auto t_work = Clock::now();
-    // Motion: content displacement of this frame against the reference.
+    // Motion: content displacement of this frame against the reference, measured (ECC on a
+    // task of its own) while the frame is accumulated at the previous frame's integer shift;
+    // in the rare frame whose integer shift changes, the frame is moved afterwards.
+    const cv::Point d_prev = sums.applied_shift.empty() ? cv::Point(0, 0) : sums.applied_shift.back();
     Vec2 shift = Vec2::Zero();
+    tbb::task_group registration;
     if (options.register_motion) {
       // Half resolution (pyrDown): a 256 px patch registers to ~0.02 px in about 1 ms.
       cv::Mat g;
@@ -247,34 +252,27 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
         // Enhanced correlation (ECC), translation only, started from the previous frame's
         // displacement: intensity-based and sub-pixel; robust to the press's local change.
         const Vec2 start = sums.shift_px.empty() ? previous_shift : sums.shift_px.back();
-        cv::Mat warp = (cv::Mat_<float>(2, 3) << 1, 0, static_cast<float>(start.x() / 2), 0, 1, static_cast<float>(start.y() / 2));
-        try {
-          cv::findTransformECC(reference.patch, g, warp, cv::MOTION_TRANSLATION,
-                               cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 10, 5e-3), cv::noArray(), 1);
-          shift = 2.0 * Vec2(warp.at<float>(0, 2), warp.at<float>(1, 2));
-        } catch (const cv::Exception&) {
-          shift = Vec2::Constant(std::numeric_limits<double>::quiet_NaN());
-        }
+        registration.run([&shift, &reference, g, start] {
+          cv::Mat warp = (cv::Mat_<float>(2, 3) << 1, 0, static_cast<float>(start.x() / 2), 0, 1, static_cast<float>(start.y() / 2));
+          try {
+            cv::findTransformECC(reference.patch, g, warp, cv::MOTION_TRANSLATION,
+                                 cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 10, 5e-3), cv::noArray(), 1);
+            shift = 2.0 * Vec2(warp.at<float>(0, 2), warp.at<float>(1, 2));
+          } catch (const cv::Exception&) {
+            shift = Vec2::Constant(std::numeric_limits<double>::quiet_NaN());
+          }
+        });
       }
-      if (!shift.allFinite() || shift.norm() > options.max_motion_px)
-        throw InputError(source.string(), name,
-                         "moved " + (shift.allFinite() ? fmt(shift.norm(), 1) + " px" : std::string("beyond recognition")) +
-                             " against the first baseline frame, more than the " + fmt(options.max_motion_px, 1) +
-                             " px clearfit compensates",
-                         "hold the part and the skin still while filming (a fixture helps), or raise "
-                         "captures.max_motion_px if the motion is a steady drift");
     }
-    // Integer part undone while accumulating, with hysteresis: frames jittering around one
-    // position keep one integer shift, so the sub-pixel residuals stay as tight as the jitter.
-    cv::Point d = sums.applied_shift.empty() ? cv::Point(0, 0) : sums.applied_shift.back();
-    if (std::abs(shift.x() - d.x) > 0.75) d.x = static_cast<int>(std::lround(shift.x()));
-    if (std::abs(shift.y() - d.y) > 0.75) d.y = static_cast<int>(std::lround(shift.y()));
     const int chunk = n / options.chunk_frames;
     if (chunk >= static_cast<int>(sums.chunk_sum.size())) {
       sums.chunk_sum.emplace_back(cv::Mat::zeros(roi.size(), CV_32F));
       sums.chunk_count.push_back(0);
     }
     cv::Mat& acc = sums.chunk_sum[chunk];
+    // Adds (sign +1) or removes (-1) the frame's linear green at integer shift d; with
+    // `stats`, also the per-row block sums, saturated pixels and green codes.
+    auto accumulate = [&](cv::Point d, float sign, bool stats) {
     tbb::parallel_for(tbb::blocked_range<int>(0, roi.height, 16), [&](const tbb::blocked_range<int>& rows) {
       for (int y = rows.begin(); y < rows.end(); ++y) {
         // Aligned pixel (x, y) of the roi reads the frame at (x, y) + d (clamped at the image edge).
@@ -292,7 +290,7 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
           auto add = [&](int x, int sx) {
             const std::uint8_t g = src[sx][1];
             const float v = lut[g];
-            dst[x] += v;
+            dst[x] += sign * v;
             sum += v;
             saturated += g == 255;
             code += g;
@@ -302,7 +300,7 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
           for (int x = lo; x < hi; ++x) {
             const std::uint8_t g = row[x][1];
             const float v = lut[g];
-            dst[x] += v;
+            dst[x] += sign * v;
             sum += v;
             saturated += g == 255;
             code += g;
@@ -310,11 +308,31 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
           for (int x = hi; x < x1; ++x) add(x, info.width - 1);
           block[b] = sum;
         }
+        if (!stats) continue;
         std::copy(block, block + 8, row_block_sum.begin() + static_cast<std::ptrdiff_t>(y) * 8);
         row_saturated[y] = saturated;
         row_code[y] = code;
       }
     });
+    };
+    accumulate(d_prev, 1.f, true);
+    registration.wait();
+    if (!shift.allFinite() || shift.norm() > options.max_motion_px)
+      throw InputError(source.string(), name,
+                       "moved " + (shift.allFinite() ? fmt(shift.norm(), 1) + " px" : std::string("beyond recognition")) +
+                           " against the first baseline frame, more than the " + fmt(options.max_motion_px, 1) +
+                           " px clearfit compensates",
+                       "hold the part and the skin still while filming (a fixture helps), or raise "
+                       "captures.max_motion_px if the motion is a steady drift");
+    // Integer part undone while accumulating, with hysteresis: frames jittering around one
+    // position keep one integer shift, so the sub-pixel residuals stay as tight as the jitter.
+    cv::Point d = d_prev;
+    if (std::abs(shift.x() - d.x) > 0.75) d.x = static_cast<int>(std::lround(shift.x()));
+    if (std::abs(shift.y() - d.y) > 0.75) d.y = static_cast<int>(std::lround(shift.y()));
+    if (d != d_prev) {
+      accumulate(d_prev, -1.f, false);
+      accumulate(d, 1.f, false);
+    }
     ++sums.chunk_count[chunk];
     std::array<float, 64> blocks{};
     std::array<int, 64> block_pixels{};
