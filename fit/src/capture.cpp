@@ -279,6 +279,16 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
         const int sy = std::clamp(roi.y + y + d.y, 0, info.height - 1);
         const auto* src = frame.ptr<cv::Vec3b>(sy);
         float* dst = acc.ptr<float>(y);
+        const int lo_all = std::clamp(-(roi.x + d.x), 0, roi.width);
+        const int hi_all = std::clamp(info.width - (roi.x + d.x), lo_all, roi.width);
+        if (!stats || (y & 1) != 0) {  // statistics come from every other row; the sum from all
+          const float first = sign * lut[src[0][1]], last = sign * lut[src[info.width - 1][1]];
+          const cv::Vec3b* row = src + roi.x + d.x;
+          for (int x = 0; x < lo_all; ++x) dst[x] += first;
+          for (int x = lo_all; x < hi_all; ++x) dst[x] += sign * lut[row[x][1]];
+          for (int x = hi_all; x < roi.width; ++x) dst[x] += last;
+          continue;
+        }
         double block[8] = {};
         int saturated = 0;
         long long code = 0;
@@ -308,7 +318,6 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
           for (int x = hi; x < x1; ++x) add(x, info.width - 1);
           block[b] = sum;
         }
-        if (!stats) continue;
         std::copy(block, block + 8, row_block_sum.begin() + static_cast<std::ptrdiff_t>(y) * 8);
         row_saturated[y] = saturated;
         row_code[y] = code;
@@ -336,19 +345,22 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
     ++sums.chunk_count[chunk];
     std::array<float, 64> blocks{};
     std::array<int, 64> block_pixels{};
-    for (int y = 0; y < roi.height; ++y)
+    long long stat_saturated = 0, stat_code = 0;
+    for (int y = 0; y < roi.height; y += 2) {  // the rows that carry statistics
+      stat_saturated += row_saturated[y];
+      stat_code += row_code[y];
       for (int b = 0; b < 8; ++b) {
         const int k = (y * 8 / roi.height) * 8 + b;
         blocks[k] += static_cast<float>(row_block_sum[static_cast<std::size_t>(y) * 8 + b]);
         // pixels in column block b of a row: x with x*8/w == b
         block_pixels[k] += (roi.width * (b + 1) + 7) / 8 - (roi.width * b + 7) / 8;
       }
+    }
+    const double stat_pixels = static_cast<double>((roi.height + 1) / 2) * roi.width;
     for (int k = 0; k < 64; ++k) blocks[k] = block_pixels[k] > 0 ? blocks[k] / block_pixels[k] : 0.f;
     sums.blocks.push_back(blocks);
-    sums.saturated_fraction.push_back(static_cast<float>(
-        std::accumulate(row_saturated.begin(), row_saturated.end(), 0LL) / static_cast<double>(roi.area())));
-    sums.mean_code.push_back(
-        static_cast<float>(std::accumulate(row_code.begin(), row_code.end(), 0LL) / static_cast<double>(roi.area())));
+    sums.saturated_fraction.push_back(static_cast<float>(stat_saturated / stat_pixels));
+    sums.mean_code.push_back(static_cast<float>(stat_code / stat_pixels));
     sums.shift_px.push_back(shift);
     sums.applied_shift.push_back(d);
     sums.work_ms += ms_since(t_work);

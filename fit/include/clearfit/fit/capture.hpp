@@ -5,7 +5,7 @@
 // frames ("chunks"), so averaging windows are chosen after the read without
 // decoding anything twice. Per frame the read also measures motion (enhanced
 // correlation, translation only, of a patch against a reference frame), the mean green of an 8×8
-// grid of blocks (for splitting one video into its two phases and for pulse),
+// grid of blocks (for splitting one video into its two phases; from every other row),
 // and saturated / dark pixels.
 //
 // Motion compensation: each frame is accumulated at an integer pixel shift
