@@ -8,6 +8,7 @@
 
 #include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+#include <tbb/parallel_reduce.h>
 
 #include <algorithm>
 #include <array>
@@ -314,6 +315,19 @@ void reset(RefractionMap& map, std::size_t p) {
   map.transmittance[p] = fnan;
 }
 
+// reset() for the n pixels from p on, a field at a time; status `why`.
+void reset_span(RefractionMap& map, std::size_t p, std::size_t n, PixelStatus why = PixelStatus::outside) {
+  constexpr double dnan = std::numeric_limits<double>::quiet_NaN();
+  std::fill_n(map.status.begin() + p, n, why);
+  std::fill_n(map.skin_point.begin() + p, n, Vec3(dnan, dnan, dnan));
+  std::fill_n(map.face.begin() + p, n, -1);
+  std::fill_n(map.bary.begin() + p, n, Eigen::Vector2f(fnan, fnan));
+  std::fill_n(map.chart_uv.begin() + p, n, Eigen::Vector2f(fnan, fnan));
+  std::fill_n(map.incidence_deg.begin() + p, n, fnan);
+  std::fill_n(map.contact_deg.begin() + p, n, fnan);
+  std::fill_n(map.transmittance.begin() + p, n, fnan);
+}
+
 // Writes every per-pixel field of the map from one sample.
 void store(RefractionMap& map, const TraceScene& scene, std::size_t p, const SkinSample& s) {
   reset(map, p);
@@ -332,9 +346,22 @@ void store(RefractionMap& map, const TraceScene& scene, std::size_t p, const Ski
   }
 }
 
+// Barycentric weights of `point` projected onto the plane of `face`.
+std::array<double, 3> plane_bary(const Mesh& mesh, int face, const Vec3& point) {
+  const Vec3 a = mesh.corner(face, 0), e1 = mesh.corner(face, 1) - a, e2 = mesh.corner(face, 2) - a;
+  const Vec3 d = point - a;
+  const double d11 = e1.dot(e1), d12 = e1.dot(e2), d22 = e2.dot(e2), det = d11 * d22 - d12 * d12;
+  const double b1 = det > 0 ? (d22 * d.dot(e1) - d12 * d.dot(e2)) / det : 0;
+  const double b2 = det > 0 ? (d11 * d.dot(e2) - d12 * d.dot(e1)) / det : 0;
+  return {1 - b1 - b2, b1, b2};
+}
+
 struct Cell {
   int x0, y0, x1, y1;  // corner pixels (inclusive)
 };
+// Cells up to this size (pixels) that a validity boundary crosses go to the
+// boundary resolver instead of being split further.
+constexpr int kResolveCell = 8;
 
 }  // namespace
 
@@ -436,35 +463,48 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
     if (!box_empty) st.traced = static_cast<long long>(box.x1 - box.x0 + 1) * (box.y1 - box.y0 + 1);
   } else {  // pixels in the box are written when traced or filled
     tbb::parallel_for(0, H, [&](int y) {
-      for (int x = 0; x < W; ++x)
-        if (box_empty || x < box.x0 || x > box.x1 || y < box.y0 || y > box.y1) reset(map, map.index(x, y));
+      if (box_empty || y < box.y0 || y > box.y1) return reset_span(map, map.index(0, y), W);
+      reset_span(map, map.index(0, y), box.x0);
+      reset_span(map, map.index(box.x1 + 1, y), W - 1 - box.x1);
     });
   }
   std::vector<char> traced(options.mode == MapOptions::Mode::exact ? 0 : N, 0);
   // Exact trace of the listed pixels that are not traced yet.
-  auto trace_pixels = [&](std::vector<std::uint32_t> pixels) {
-    std::erase_if(pixels, [&](std::uint32_t p) { return traced[p] != 0; });
-    // Distinct pixels in 16x16 tiles, row-major within a tile: neighbouring
-    // rays go into the same chunk (coherent casts).
-    auto tile_order = [W](std::uint32_t p) {
-      const std::uint32_t x = p % W, y = p / W;
-      return (std::uint64_t{y >> 4} << 48) | (std::uint64_t{x >> 4} << 32) | p;
-    };
-    std::sort(pixels.begin(), pixels.end(), [&](std::uint32_t a, std::uint32_t b) { return tile_order(a) < tile_order(b); });
-    pixels.erase(std::unique(pixels.begin(), pixels.end()), pixels.end());
+  auto trace_pixels = [&](const std::vector<std::uint32_t>& pixels_in) {
+    // Distinct untraced pixels in 16x16 tiles, row-major within a tile:
+    // neighbouring rays go into the same chunk (coherent casts).
+    std::vector<std::uint64_t> key;
+    key.reserve(pixels_in.size());
+    for (std::uint32_t p : pixels_in)
+      if (!traced[p]) {
+        const std::uint32_t x = p % W, y = p / W;
+        key.push_back((std::uint64_t{y >> 4} << 48) | (std::uint64_t{x >> 4} << 32) | p);
+      }
+    std::sort(key.begin(), key.end());
+    key.erase(std::unique(key.begin(), key.end()), key.end());
+    std::vector<std::uint32_t> pixels(key.size());
+    for (std::size_t i = 0; i < key.size(); ++i) pixels[i] = static_cast<std::uint32_t>(key[i]);
     const auto tu = Clock::now();
     rays->ensure(pixels);
     st.unproject_ms += ms_since(tu);
-    std::vector<Ray> first(pixels.size());
-    tbb::parallel_for(std::size_t(0), pixels.size(), [&](std::size_t i) {
-      first[i].origin = part_from_cam.translation;
-      first[i].direction = part_from_cam.rotation * rays->ray(pixels[i]);
-    });
-    std::vector<SkinSample> out(pixels.size());
-    tracer.trace(first, out);
-    tbb::parallel_for(std::size_t(0), pixels.size(), [&](std::size_t i) {  // distinct pixels: no races
-      store(map, scene, pixels[i], out[i]);
-      traced[pixels[i]] = 1;
+    // Chunks of up to 256 rays in parallel: rays, two casts, store (distinct
+    // pixels: no races); nothing batch-sized besides the pixel list.
+    constexpr std::size_t kChunk = 256;
+    tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pixels.size(), kChunk), [&](const auto& r) {
+      for (std::size_t b = r.begin(); b < r.end(); b += kChunk) {
+        const std::size_t n = std::min(kChunk, r.end() - b);
+        std::array<Ray, kChunk> first;
+        std::array<SkinSample, kChunk> out;
+        for (std::size_t i = 0; i < n; ++i) {
+          first[i].origin = part_from_cam.translation;
+          first[i].direction = part_from_cam.rotation * rays->ray(pixels[b + i]);
+        }
+        tracer.trace_chunk(std::span(first.data(), n), std::span(out.data(), n));
+        for (std::size_t i = 0; i < n; ++i) {
+          store(map, scene, pixels[b + i], out[i]);
+          traced[pixels[b + i]] = 1;
+        }
+      }
     });
     st.traced += static_cast<long long>(pixels.size());
   };
@@ -473,11 +513,12 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
     if (options.mode != MapOptions::Mode::exact) {
       // Quadtree over pixel cells with up to nine nodes each (corners, edge
       // midpoints, centre), all traced exactly; the interior is filled by
-      // tensor-product quadratic (Lagrange) interpolation of the nodes. A
-      // check pixel at a quarter of the cell is traced too; adaptive splits
-      // the cell into its quadrants (whose corners are nodes already) unless
-      // the interpolation is within tolerance there. Each level's nodes and
-      // checks are traced in one batch.
+      // tensor-product quadratic (Lagrange) interpolation of the nodes. Two
+      // check pixels (1/4 and 3/4 of the diagonal) are traced too; adaptive
+      // splits the cell into its quadrants (whose corners are nodes already)
+      // unless the interpolation is within tolerance there. Each level's
+      // nodes and checks are traced in one batch. Small cells that a validity
+      // boundary crosses go to resolve_boundary() instead of being split.
       const bool adaptive = options.mode == MapOptions::Mode::adaptive;
       const double tol_mm = options.tolerance_um * 1e-3;
       const std::vector<int>& component = scene.contact->component;
@@ -551,12 +592,7 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
         }
         Interp r{Vec3::Zero(), map.face[q.pixel[heaviest]], {}, Vec2::Constant(std::numeric_limits<double>::quiet_NaN())};
         for (int k = 0; k < q.n; ++k) r.point += w[k] * map.skin_point[q.pixel[k]];
-        const Vec3 a = mesh.corner(r.face, 0), e1 = mesh.corner(r.face, 1) - a, e2 = mesh.corner(r.face, 2) - a;
-        const Vec3 d = r.point - a;
-        const double d11 = e1.dot(e1), d12 = e1.dot(e2), d22 = e2.dot(e2), det = d11 * d22 - d12 * d12;
-        const double b1 = det > 0 ? (d22 * d.dot(e1) - d12 * d.dot(e2)) / det : 0;
-        const double b2 = det > 0 ? (d11 * d.dot(e2) - d12 * d.dot(e1)) / det : 0;
-        r.bary = {1 - b1 - b2, b1, b2};
+        r.bary = plane_bary(mesh, r.face, r.point);
         return r;
       };
       // Writes the interpolated fields of pixel p (weights w of the nodes).
@@ -601,81 +637,289 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
       // The same without a chart: the skin points themselves, evaluated per
       // row (the quadratic in y folded first), each on the face of the
       // heaviest node. Gives interpolate()'s result up to rounding.
-      auto fill_direct = [&](const Nodes& q, int x0, int y0, int xe, int ye) {
-        struct Frame {  // the node's face: corner 0, edges, inverse Gram terms
-          Vec3 a, e1, e2;
-          double d11, d12, d22, det;
+      // The same without a chart: the skin points themselves, each on the face
+      // of the heaviest node. Prepared per cell, then written row by row
+      // across all cells of a level (long runs along the rows write at about
+      // twice the memory bandwidth of cell by cell). Gives interpolate()'s
+      // result up to rounding.
+      struct DirectFill {
+        // Per node's face: corner 0 and the two vectors whose dot products
+        // with (point - corner 0) give the barycentric weights of corners 1, 2.
+        struct Frame {
+          Vec3 a, g1, g2;
+          int face;
         };
+        using Val = Eigen::Matrix<double, 6, 1>;  // skin point, incidence, contact, transmittance
+        Nodes q;
+        int x0, y0, xe, ye;
         std::array<Frame, 9> frame;
-        for (int k = 0; k < q.n; ++k) {
-          Frame& f = frame[k];
-          const int face = map.face[q.pixel[k]];
-          f.a = mesh.corner(face, 0), f.e1 = mesh.corner(face, 1) - f.a, f.e2 = mesh.corner(face, 2) - f.a;
-          f.d11 = f.e1.dot(f.e1), f.d12 = f.e1.dot(f.e2), f.d22 = f.e2.dot(f.e2), f.det = f.d11 * f.d22 - f.d12 * f.d12;
+        std::array<Val, 9> node_val;
+        double wx0[3][3];      // x weights at x0, x0 + 1, x0 + 2
+        int ix_from[3], ix_n;  // heaviest node column: column ix_of[k] from x0 + ix_from[k] on
+        int ix_of[3];
+      };
+      auto lagrange = [](const int* at, int n, int v, double* w) {
+        int best = 0;
+        for (int i = 0; i < n; ++i) {
+          w[i] = 1;
+          for (int k = 0; k < n; ++k)
+            if (k != i) w[i] *= double(v - at[k]) / (at[i] - at[k]);
+          if (w[i] > w[best]) best = i;
         }
-        auto lagrange = [](const int* at, int n, int v, double* w) {
-          int best = 0;
-          for (int i = 0; i < n; ++i) {
-            w[i] = 1;
-            for (int k = 0; k < n; ++k)
-              if (k != i) w[i] *= double(v - at[k]) / (at[i] - at[k]);
-            if (w[i] > w[best]) best = i;
-          }
-          return best;
-        };
+        return best;
+      };
+      auto prepare_direct = [&](const Cell& c, DirectFill& f) {
+        f.q = nodes_of(c);
+        const Nodes& q = f.q;
+        f.x0 = c.x0, f.y0 = c.y0;
+        f.xe = c.x1 == box.x1 ? c.x1 : c.x1 - 1, f.ye = c.y1 == box.y1 ? c.y1 : c.y1 - 1;
+        for (int k = 0; k < q.n; ++k) {
+          DirectFill::Frame& fr = f.frame[k];
+          const std::uint32_t n = q.pixel[k];
+          fr.face = map.face[n];
+          fr.a = mesh.corner(fr.face, 0);
+          const Vec3 e1 = mesh.corner(fr.face, 1) - fr.a, e2 = mesh.corner(fr.face, 2) - fr.a;
+          const double d11 = e1.dot(e1), d12 = e1.dot(e2), d22 = e2.dot(e2), det = d11 * d22 - d12 * d12;
+          const double inv = det > 0 ? 1 / det : 0;
+          fr.g1 = (d22 * e1 - d12 * e2) * inv;
+          fr.g2 = (d11 * e2 - d12 * e1) * inv;
+          f.node_val[k] << map.skin_point[n], map.incidence_deg[n], map.contact_deg[n], map.transmittance[n];
+        }
+        for (int k = 0; k < 3; ++k) lagrange(q.ax, q.nx, f.x0 + k, f.wx0[k]);
+        f.ix_n = 0;
+        for (int x = f.x0; x <= f.xe; ++x) {
+          double w[3];
+          const int ix = lagrange(q.ax, q.nx, x, w);
+          if (f.ix_n == 0 || f.ix_of[f.ix_n - 1] != ix) f.ix_from[f.ix_n] = x - f.x0, f.ix_of[f.ix_n++] = ix;
+        }
+      };
+      // Row y of a prepared cell. Along a row the interpolant is a polynomial
+      // of degree nx - 1 <= 2 in x: values at x0, x0 + 1, x0 + 2, then forward
+      // differences.
+      auto fill_direct_row = [&](const DirectFill& f, int y) {
+        using Val = DirectFill::Val;
+        const Nodes& q = f.q;
+        double wy[3];
+        const int jy = lagrange(q.ay, q.ny, y, wy);
+        Val row[3];
+        for (int i = 0; i < q.nx; ++i) {
+          row[i].setZero();
+          for (int j = 0; j < q.ny; ++j) row[i] += wy[j] * f.node_val[j * q.nx + i];
+        }
+        Val v[3];
+        for (int k = 0; k < 3; ++k) {
+          v[k].setZero();
+          for (int i = 0; i < q.nx; ++i) v[k] += f.wx0[k][i] * row[i];
+        }
+        // Forward differences of the values and, per run of one heaviest node
+        // column, of the two barycentric weights (linear in the point).
+        using Val8 = Eigen::Matrix<double, 8, 1>;
+        Val8 value, d1, d2;
+        value << v[0], 0, 0;
+        d1 << v[1] - v[0], 0, 0;
+        d2 << v[2] - 2 * v[1] + v[0], 0, 0;
+        const std::uint32_t row_start = idx(f.x0, y);
         long long count = 0;
-        for (int y = y0; y <= ye; ++y) {
-          double wy[3];
-          const int jy = lagrange(q.ay, q.ny, y, wy);
-          Vec3 row[3];
-          double row_f[3][3];  // incidence, contact, transmittance
-          for (int i = 0; i < q.nx; ++i) {
-            row[i].setZero();
-            row_f[i][0] = row_f[i][1] = row_f[i][2] = 0;
-            for (int j = 0; j < q.ny; ++j) {
-              const std::uint32_t n = q.pixel[j * q.nx + i];
-              row[i] += wy[j] * map.skin_point[n];
-              row_f[i][0] += wy[j] * map.incidence_deg[n];
-              row_f[i][1] += wy[j] * map.contact_deg[n];
-              row_f[i][2] += wy[j] * map.transmittance[n];
-            }
-          }
-          for (int x = x0; x <= xe; ++x) {
-            const std::uint32_t p = idx(x, y);
+        const int n = f.xe - f.x0 + 1;
+        for (int seg = 0; seg < f.ix_n; ++seg) {
+          const DirectFill::Frame& fr = f.frame[jy * q.nx + f.ix_of[seg]];
+          const int xi_end = seg + 1 < f.ix_n ? f.ix_from[seg + 1] : n;
+          value[6] = (value.head<3>() - fr.a).dot(fr.g1), value[7] = (value.head<3>() - fr.a).dot(fr.g2);
+          d1[6] = d1.head<3>().dot(fr.g1), d1[7] = d1.head<3>().dot(fr.g2);
+          d2[6] = d2.head<3>().dot(fr.g1), d2[7] = d2.head<3>().dot(fr.g2);
+          for (int xi = f.ix_from[seg]; xi < xi_end; ++xi, value += d1, d1 += d2) {
+            const std::uint32_t p = row_start + static_cast<std::uint32_t>(xi);
             if (traced[p]) continue;
             traced[p] = 2;
-            double wx[3];
-            const int ix = lagrange(q.ax, q.nx, x, wx);
-            Vec3 point = Vec3::Zero();
-            double fsum[3] = {0, 0, 0};
-            for (int i = 0; i < q.nx; ++i) {
-              point += wx[i] * row[i];
-              for (int k = 0; k < 3; ++k) fsum[k] += wx[i] * row_f[i][k];
-            }
-            const Frame& f = frame[jy * q.nx + ix];
-            const Vec3 d = point - f.a;
-            const double de1 = d.dot(f.e1), de2 = d.dot(f.e2);
-            const double b1 = f.det > 0 ? (f.d22 * de1 - f.d12 * de2) / f.det : 0;
-            const double b2 = f.det > 0 ? (f.d11 * de2 - f.d12 * de1) / f.det : 0;
             map.status[p] = PixelStatus::valid;
-            map.skin_point[p] = point;
-            map.face[p] = map.face[q.pixel[jy * q.nx + ix]];
-            map.bary[p] = Eigen::Vector2f(static_cast<float>(b1), static_cast<float>(b2));
+            map.skin_point[p] = value.head<3>();
+            map.face[p] = fr.face;
+            map.bary[p] = Eigen::Vector2f(static_cast<float>(value[6]), static_cast<float>(value[7]));
             map.chart_uv[p] = Eigen::Vector2f(fnan, fnan);
-            map.incidence_deg[p] = static_cast<float>(fsum[0]);
-            map.contact_deg[p] = static_cast<float>(fsum[1]);
-            map.transmittance[p] = std::clamp(static_cast<float>(fsum[2]), 0.0f, 1.0f);
+            map.incidence_deg[p] = static_cast<float>(value[3]);
+            map.contact_deg[p] = static_cast<float>(value[4]);
+            map.transmittance[p] = std::clamp(static_cast<float>(value[5]), 0.0f, 1.0f);
             ++count;
           }
         }
         return count;
       };
+      // Row y of a cell that is uniformly invalid for reason `why`: runs of
+      // untraced pixels, a field at a time.
+      auto fill_invalid_row = [&](int x0, int xe, int y, PixelStatus why) {
+        for (int x = x0; x <= xe;) {
+          if (traced[idx(x, y)]) {
+            ++x;
+            continue;
+          }
+          int run = 1;
+          while (x + run <= xe && !traced[idx(x + run, y)]) ++run;
+          reset_span(map, idx(x, y), run, why);
+          std::fill_n(traced.begin() + idx(x, y), run, 2);
+          x += run;
+        }
+      };
       auto done = [](const Cell& c) { return c.x1 - c.x0 <= 2 && c.y1 - c.y0 <= 2; };  // every pixel is a node
+      // Small cells that a validity boundary crosses are not split down to
+      // single pixels. Their untraced pixels (traced = 4, pending) take the
+      // status of the nearest node as a guess; then, in rounds, every pending
+      // pixel that is guessed valid or has a 4-neighbour of another status is
+      // traced, until no pending pixel borders a different status. The
+      // boundary is then traced on both sides, pixel-exact, and the pending
+      // pixels left are invalid for the same reason as all their neighbours.
+      auto resolve_boundary = [&](const std::vector<Cell>& cells_in) {
+        if (cells_in.empty()) return;
+        std::vector<std::vector<std::uint32_t>> per_cell(cells_in.size());
+        tbb::parallel_for(std::size_t(0), cells_in.size(), [&](std::size_t ci) {
+          const Cell& c = cells_in[ci];
+          const Nodes q = nodes_of(c);
+          const int xe = c.x1 == box.x1 ? c.x1 : c.x1 - 1, ye = c.y1 == box.y1 ? c.y1 : c.y1 - 1;
+          auto nearest = [](const int* at, int n, int v) {
+            int best = 0;
+            for (int i = 1; i < n; ++i)
+              if (std::abs(v - at[i]) < std::abs(v - at[best])) best = i;
+            return best;
+          };
+          for (int y = c.y0; y <= ye; ++y)
+            for (int x = c.x0; x <= xe; ++x)
+              if (const std::uint32_t p = idx(x, y); !traced[p]) {
+                traced[p] = 4;
+                map.status[p] = map.status[q.pixel[nearest(q.ay, q.ny, y) * q.nx + nearest(q.ax, q.nx, x)]];
+                per_cell[ci].push_back(p);
+              }
+        });
+        std::vector<std::uint32_t> pending;
+        for (const auto& v : per_cell) pending.insert(pending.end(), v.begin(), v.end());
+        auto borders_other = [&](std::uint32_t p) {
+          const int x = static_cast<int>(p % W), y = static_cast<int>(p / W);
+          const PixelStatus s = map.status[p];
+          return (x > box.x0 && map.status[p - 1] != s) || (x < box.x1 && map.status[p + 1] != s) ||
+                 (y > box.y0 && map.status[p - W] != s) || (y < box.y1 && map.status[p + W] != s);
+        };
+        std::vector<char> pick;
+        while (!pending.empty()) {
+          pick.assign(pending.size(), 0);
+          tbb::parallel_for(std::size_t(0), pending.size(), [&](std::size_t i) { pick[i] = borders_other(pending[i]); });
+          std::vector<std::uint32_t> round;
+          for (std::size_t i = 0; i < pending.size(); ++i)
+            if (pick[i]) round.push_back(pending[i]), traced[pending[i]] = 0;
+          if (round.empty()) break;
+          trace_pixels(round);
+          std::erase_if(pending, [&](std::uint32_t p) { return traced[p] == 1; });
+        }
+        // The pending pixels left inside the valid region: a least-squares
+        // quadratic in (x, y) through the exactly traced valid pixels around
+        // the cell (its valid nodes, its checks, the valid side of the traced
+        // boundary, the neighbours' nodes), used only where it fits every one
+        // of them within the tolerance and they lie on one contact component;
+        // otherwise those pixels are traced.
+        std::vector<std::vector<std::uint32_t>> untrusted(cells_in.size());
+        std::vector<double> fit_err(cells_in.size(), 0);
+        std::atomic<long long> fitted{0};
+        tbb::parallel_for(std::size_t(0), cells_in.size(), [&](std::size_t ci) {
+          std::vector<std::uint32_t> todo;
+          for (std::uint32_t p : per_cell[ci])
+            if (traced[p] == 4 && map.status[p] == PixelStatus::valid) todo.push_back(p);
+          if (todo.empty()) return;
+          const Cell& c = cells_in[ci];
+          constexpr int kMargin = 4;
+          const int wx0 = std::max(box.x0, c.x0 - kMargin), wx1 = std::min(box.x1, c.x1 + kMargin);
+          const int wy0 = std::max(box.y0, c.y0 - kMargin), wy1 = std::min(box.y1, c.y1 + kMargin);
+          const double cx = 0.5 * (c.x0 + c.x1), cy = 0.5 * (c.y0 + c.y1), scale = 1.0 / std::max(1, c.x1 - c.x0);
+          auto basis = [&](int x, int y) {
+            const double u = (x - cx) * scale, v = (y - cy) * scale;
+            return Eigen::Matrix<double, 1, 6>(1, u, v, u * u, u * v, v * v);
+          };
+          std::vector<std::uint32_t> known;
+          for (int y = wy0; y <= wy1; ++y)
+            for (int x = wx0; x <= wx1; ++x)
+              if (const std::uint32_t p = idx(x, y); traced[p] == 1 && map.status[p] == PixelStatus::valid) known.push_back(p);
+          bool ok = known.size() >= 12;
+          const int comp = ok ? component[map.face[known[0]]] : -1;
+          for (std::size_t k = 0; ok && k < known.size(); ++k) ok = component[map.face[known[k]]] == comp;
+          constexpr int kCols = 8;  // skin point, incidence, contact, transmittance, chart uv
+          Eigen::Matrix<double, 6, kCols> coef;
+          if (ok) {
+            Eigen::MatrixXd A(known.size(), 6), B(known.size(), kCols);
+            for (std::size_t k = 0; k < known.size(); ++k) {
+              const std::uint32_t p = known[k];
+              A.row(k) = basis(static_cast<int>(p % W), static_cast<int>(p / W));
+              const Eigen::Vector2d uv = locator ? Eigen::Vector2d(map.chart_uv[p].cast<double>()) : Eigen::Vector2d::Zero();
+              B.row(k) << map.skin_point[p].transpose(), map.incidence_deg[p], map.contact_deg[p], map.transmittance[p],
+                  uv.transpose();
+            }
+            coef = A.colPivHouseholderQr().solve(B);
+            const Eigen::MatrixXd R = A * coef - B;
+            double err = 0;
+            for (std::size_t k = 0; k < known.size(); ++k)
+              err = std::max({err, R.row(k).head<3>().norm(), R.row(k).tail<2>().norm()});
+            ok = std::isfinite(err) && err <= tol_mm;
+            fit_err[ci] = ok ? err : 0;
+          }
+          if (!ok) {
+            untrusted[ci] = std::move(todo);
+            return;
+          }
+          long long n = 0;
+          for (std::uint32_t p : todo) {
+            const int x = static_cast<int>(p % W), y = static_cast<int>(p / W);
+            const Eigen::Matrix<double, 1, kCols> v = basis(x, y) * coef;
+            Interp r;
+            if (locator) {
+              const Vec2 uv(v[6], v[7]);
+              const auto hit = locator->locate(uv);
+              if (!hit) {
+                untrusted[ci].push_back(p);
+                continue;
+              }
+              r = Interp{hit->point, hit->face, hit->bary, uv};
+            } else {
+              // On the face of the nearest traced valid pixel.
+              std::uint32_t near = known[0];
+              int best = std::numeric_limits<int>::max();
+              for (std::uint32_t k : known) {
+                const int dx = static_cast<int>(k % W) - x, dy = static_cast<int>(k / W) - y;
+                if (dx * dx + dy * dy < best) best = dx * dx + dy * dy, near = k;
+              }
+              r.point = v.head<3>().transpose();
+              r.face = map.face[near];
+              r.uv = Vec2::Constant(std::numeric_limits<double>::quiet_NaN());
+              r.bary = plane_bary(mesh, r.face, r.point);
+            }
+            map.status[p] = PixelStatus::valid;
+            map.skin_point[p] = r.point;
+            map.face[p] = r.face;
+            map.bary[p] = Eigen::Vector2f(static_cast<float>(r.bary[1]), static_cast<float>(r.bary[2]));
+            map.chart_uv[p] = r.uv.cast<float>();
+            map.incidence_deg[p] = static_cast<float>(v[3]);
+            map.contact_deg[p] = static_cast<float>(v[4]);
+            map.transmittance[p] = std::clamp(static_cast<float>(v[5]), 0.0f, 1.0f);
+            traced[p] = 2;
+            ++n;
+          }
+          fitted += n;
+        });
+        st.interpolated += fitted;
+        for (double e : fit_err) worst = std::max(worst, e);
+        std::vector<std::uint32_t> rest;
+        for (auto& v : untrusted)
+          for (std::uint32_t p : v) rest.push_back(p), traced[p] = 0;
+        trace_pixels(rest);
+        std::erase_if(pending, [&](std::uint32_t p) { return traced[p] != 4; });
+        tbb::parallel_for(std::size_t(0), pending.size(), [&](std::size_t i) {
+          const std::uint32_t p = pending[i];
+          const PixelStatus s = map.status[p];
+          reset(map, p);
+          map.status[p] = s;
+          traced[p] = 2;
+        });
+      };
       // Two check pixels, at a quarter and three quarters of the cell's diagonal.
       auto check_xy = [](const Cell& c, int k) {
         const int dx = (c.x1 - c.x0) / 4, dy = (c.y1 - c.y0) / 4;
         return k == 0 ? std::pair{c.x0 + dx, c.y0 + dy} : std::pair{c.x1 - dx, c.y1 - dy};
       };
+      std::vector<Cell> boundary;
       while (!cells.empty()) {
         std::vector<std::uint32_t> batch;
         for (const Cell& c : cells) {
@@ -684,11 +928,12 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
           if (!done(c))
             for (int k = 0; k < 2; ++k) batch.push_back(idx(check_xy(c, k).first, check_xy(c, k).second));
         }
-        trace_pixels(std::move(batch));
+        trace_pixels(batch);
         // Decide every cell (in parallel), then fill the accepted ones. A pixel
         // belongs to the cell with x0 <= x < x1 and y0 <= y < y1 (or on the
         // box's last column/row), so parallel fills never touch the same pixel.
-        std::vector<char> decision(cells.size(), 0);  // 0 done, 1 accept valid, 2 accept invalid, 3 split
+        // 0 done, 1 accept valid, 2 accept invalid, 3 split, 4 to the boundary resolver
+        std::vector<char> decision(cells.size(), 0);
         std::vector<double> cell_err(cells.size(), 0);
         tbb::parallel_for(std::size_t(0), cells.size(), [&](std::size_t ci) {
           const Cell& c = cells[ci];
@@ -718,12 +963,15 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
             if (err < 1e300 && (!adaptive || err <= tol_mm)) decision[ci] = 1, cell_err[ci] = err;
           } else if (same_invalid && map.status[checks[0]] == first && map.status[checks[1]] == first) {
             decision[ci] = 2;  // uniformly invalid for the same reason
+          } else if (c.x1 - c.x0 <= kResolveCell && c.y1 - c.y0 <= kResolveCell) {
+            decision[ci] = 4;  // a small cell that a validity boundary crosses
           }
         });
         std::vector<Cell> next;
         for (std::size_t ci = 0; ci < cells.size(); ++ci) {
           const Cell& c = cells[ci];
           if (decision[ci] == 1) worst = std::max(worst, cell_err[ci]);
+          if (decision[ci] == 4) boundary.push_back(c);
           if (decision[ci] != 3) continue;
           const int xm = (c.x0 + c.x1) / 2, ym = (c.y0 + c.y1) / 2;
           const bool sx = c.x1 - c.x0 > 1, sy = c.y1 - c.y0 > 1;
@@ -731,25 +979,61 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
           else if (sx) next.insert(next.end(), {{c.x0, c.y0, xm, c.y1}, {xm, c.y0, c.x1, c.y1}});
           else next.insert(next.end(), {{c.x0, c.y0, c.x1, ym}, {c.x0, ym, c.x1, c.y1}});
         }
+        // Fill the accepted cells: row by row across cells (without a chart),
+        // or cell by cell through the chart's point location.
         std::atomic<long long> filled{0};
-        tbb::parallel_for(std::size_t(0), cells.size(), [&](std::size_t ci) {
-          if (decision[ci] != 1 && decision[ci] != 2) return;
-          const Cell& c = cells[ci];
-          const Nodes q = nodes_of(c);
-          const PixelStatus first = map.status[q.pixel[0]];
-          const int xe = c.x1 == box.x1 ? c.x1 : c.x1 - 1, ye = c.y1 == box.y1 ? c.y1 : c.y1 - 1;
-          if (decision[ci] == 2) {
-            for (int y = c.y0; y <= ye; ++y)
-              for (int x = c.x0; x <= xe; ++x)
-                if (const std::uint32_t p = idx(x, y); !traced[p]) {
-                  traced[p] = 2;
-                  reset(map, p);
-                  map.status[p] = first;
-                }
-            return;
+        std::vector<std::size_t> accepted;
+        for (std::size_t ci = 0; ci < cells.size(); ++ci)
+          if (decision[ci] == 1 || decision[ci] == 2) accepted.push_back(ci);
+        if (locator) {
+          tbb::parallel_for(std::size_t(0), accepted.size(), [&](std::size_t k) {
+            const Cell& c = cells[accepted[k]];
+            const int xe = c.x1 == box.x1 ? c.x1 : c.x1 - 1, ye = c.y1 == box.y1 ? c.y1 : c.y1 - 1;
+            if (decision[accepted[k]] == 1) {
+              filled += fill_located(c, nodes_of(c), xe, ye);
+            } else {
+              const PixelStatus why = map.status[nodes_of(c).pixel[0]];
+              for (int y = c.y0; y <= ye; ++y) fill_invalid_row(c.x0, xe, y, why);
+            }
+          });
+        } else if (!accepted.empty()) {
+          std::sort(accepted.begin(), accepted.end(), [&](std::size_t a, std::size_t b) {
+            return std::pair(cells[a].y0, cells[a].x0) < std::pair(cells[b].y0, cells[b].x0);
+          });
+          std::vector<DirectFill> prepared(accepted.size());
+          tbb::parallel_for(std::size_t(0), accepted.size(), [&](std::size_t k) {
+            if (decision[accepted[k]] == 1) prepare_direct(cells[accepted[k]], prepared[k]);
+          });
+          // Bands: runs of accepted cells with the same first row; one task per row of a band.
+          struct RowTask {
+            std::size_t begin, end;
+            int y;
+          };
+          std::vector<RowTask> tasks;
+          for (std::size_t k = 0; k < accepted.size();) {
+            std::size_t e = k;
+            int last = cells[accepted[k]].y0;
+            while (e < accepted.size() && cells[accepted[e]].y0 == cells[accepted[k]].y0) {
+              const Cell& c = cells[accepted[e]];
+              last = std::max(last, c.y1 == box.y1 ? c.y1 : c.y1 - 1);
+              ++e;
+            }
+            for (int y = cells[accepted[k]].y0; y <= last; ++y) tasks.push_back({k, e, y});
+            k = e;
           }
-          filled += locator ? fill_located(c, q, xe, ye) : fill_direct(q, c.x0, c.y0, xe, ye);
-        });
+          tbb::parallel_for(std::size_t(0), tasks.size(), [&](std::size_t t) {
+            long long n = 0;
+            const RowTask& task = tasks[t];
+            for (std::size_t k = task.begin; k < task.end; ++k) {
+              const Cell& c = cells[accepted[k]];
+              const int xe = c.x1 == box.x1 ? c.x1 : c.x1 - 1, ye = c.y1 == box.y1 ? c.y1 : c.y1 - 1;
+              if (task.y > ye) continue;
+              if (decision[accepted[k]] == 1) n += fill_direct_row(prepared[k], task.y);
+              else fill_invalid_row(c.x0, xe, task.y, map.status[nodes_of(c).pixel[0]]);
+            }
+            filled += n;
+          });
+        }
         st.interpolated += filled;
         for (std::size_t ci = 0; locator && ci < cells.size(); ++ci) {
           if (decision[ci] != 1) continue;
@@ -758,16 +1042,30 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
             for (int x = c.x0; x <= c.x1; ++x)
               if (traced[idx(x, y)] == 3) traced[idx(x, y)] = 0, retrace.push_back(idx(x, y));
         }
-        trace_pixels(std::move(retrace));
+        trace_pixels(retrace);
         retrace.clear();
         cells = std::move(next);
       }
+      resolve_boundary(boundary);
       st.max_error_um = worst * 1e3;
     }
   }
   st.trace_ms = ms_since(t0) - st.unproject_ms;
 
-  for (PixelStatus s : map.status) ++st.by_status[static_cast<int>(s)];
+  {
+    using Counts = std::array<long long, kPixelStatusCount>;
+    const Counts counts = tbb::parallel_reduce(
+        tbb::blocked_range<std::size_t>(0, N, 1 << 16), Counts{},
+        [&](const tbb::blocked_range<std::size_t>& r, Counts c) {
+          for (std::size_t i = r.begin(); i < r.end(); ++i) ++c[static_cast<int>(map.status[i])];
+          return c;
+        },
+        [](Counts a, const Counts& b) {
+          for (int k = 0; k < kPixelStatusCount; ++k) a[k] += b[k];
+          return a;
+        });
+    for (int k = 0; k < kPixelStatusCount; ++k) st.by_status[k] = counts[k];
+  }
   st.coverage = static_cast<double>(st.by_status[0]) / static_cast<double>(std::max<long long>(1, st.pixels));
   st.total_ms = ms_since(t_start);
   return map;

@@ -44,6 +44,13 @@ struct Compared {
   }
 };
 
+MapOptions adaptive_at(double tolerance_um) {
+  MapOptions opt;
+  opt.mode = MapOptions::Mode::adaptive;
+  opt.tolerance_um = tolerance_um;
+  return opt;
+}
+
 Compared compare(const RefractionMap& approx, const RefractionMap& exact) {
   Compared c;
   for (std::size_t i = 0; i < exact.status.size(); ++i) {
@@ -115,10 +122,7 @@ TEST(MapModes, WithoutAChartInterpolationIsLimitedBySurfaceSag) {
   Scene band(shapes::cylindrical_shell(32, 34.5, 100, 40, 192, 16), 320, 240, 290, 80 + 34.5);
   band.use_chart = false;
   const RefractionMap exact = band.run({});
-  MapOptions opt;
-  opt.mode = MapOptions::Mode::adaptive;
-  opt.tolerance_um = 1.0;
-  const RefractionMap approx = band.run(opt);
+  const RefractionMap approx = band.run(adaptive_at(1.0));
   Compared c = compare(approx, exact);
   EXPECT_LE(c.p(0.99), 2.0);
   EXPECT_LE(approx.stats.max_error_um, 1.0);
@@ -131,10 +135,7 @@ TEST(MapModes, FlatSlabIsInterpolatedAlmostEverywhere) {
   Scene slab(shapes::slab(400, 400, 3, 4), 256, 192, 240, 60);
   slab.camera.lensmodel = "LENSMODEL_PINHOLE";
   slab.camera.intrinsics.resize(4);
-  MapOptions opt;
-  opt.mode = MapOptions::Mode::adaptive;
-  opt.tolerance_um = 1.0;
-  const RefractionMap approx = slab.run(opt);
+  const RefractionMap approx = slab.run(adaptive_at(1.0));
   const RefractionMap exact = slab.run({});
   Compared c = compare(approx, exact);
   EXPECT_EQ(c.mismatched, 0);
@@ -155,5 +156,54 @@ TEST(MapModes, BadOptionsNameTheField) {
     FAIL();
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("tolerance_um"), std::string::npos);
+  }
+}
+
+TEST(MapModes, AdaptiveBoundariesArePixelExact) {
+  // Cells that a validity boundary crosses go to the boundary resolver: it
+  // traces both sides of every boundary and fits the valid pixels behind
+  // them. Every pixel's status (each invalid reason too) must be the exact
+  // trace's, and the pixels near a boundary must honour the tolerance like
+  // the rest.
+  Scene dome(shapes::spherical_shell(25, 27.5, 40, 64, 256), 640, 480, 560, 70 + 27.5);
+  for (bool use_chart : {true, false}) {
+    dome.use_chart = use_chart;
+    const RefractionMap exact = dome.run({});
+    const RefractionMap approx = dome.run(adaptive_at(1.0));
+    long long status_diff = 0, boundaries = 0;
+    std::vector<double> near_um;
+    const int W = exact.width, H = exact.height;
+    // Valid pixels with an invalid one within 6 px (a square window): a
+    // separable dilation of the invalid mask.
+    std::vector<char> invalid(exact.status.size()), rows(exact.status.size()), near(exact.status.size());
+    for (std::size_t p = 0; p < invalid.size(); ++p) invalid[p] = exact.status[p] != PixelStatus::valid;
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x)
+        for (int d = -6; d <= 6 && !rows[exact.index(x, y)]; ++d)
+          rows[exact.index(x, y)] = x + d >= 0 && x + d < W && invalid[exact.index(x + d, y)];
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x)
+        for (int d = -6; d <= 6 && !near[exact.index(x, y)]; ++d)
+          near[exact.index(x, y)] = y + d >= 0 && y + d < H && rows[exact.index(x, y + d)];
+    for (int y = 0; y < H; ++y)
+      for (int x = 0; x < W; ++x) {
+        const std::size_t p = exact.index(x, y);
+        status_diff += approx.status[p] != exact.status[p];
+        if (x + 1 < W && exact.status[p] != exact.status[p + 1]) ++boundaries;
+        if (near[p] && !invalid[p] && approx.status[p] == PixelStatus::valid)
+          near_um.push_back((approx.skin_point[p] - exact.skin_point[p]).norm() * 1e3);
+      }
+    std::sort(near_um.begin(), near_um.end());
+    ASSERT_GT(boundaries, 500);  // the rim of the dome and the edge of the contact cap cross many rows
+    ASSERT_GT(near_um.size(), 2000u);
+    const double p99 = near_um[near_um.size() * 99 / 100], mx = near_um.back();
+    std::printf("  chart %d: traced %lld of %lld, status differs %lld, near-boundary p99 %.3f um, max %.3f um\n",
+                use_chart, approx.stats.traced, exact.stats.traced, status_diff, p99, mx);
+    EXPECT_EQ(status_diff, 0) << use_chart;
+    // Without a chart the interpolation is in 3D and sags off the surface
+    // between samples (see WithoutAChartInterpolationIsLimitedBySurfaceSag).
+    EXPECT_LE(p99, use_chart ? 1.0 : 2.0) << use_chart;
+    EXPECT_LE(mx, use_chart ? 2.0 : 3.0) << use_chart;
+    EXPECT_LT(approx.stats.traced, exact.stats.traced / 4) << use_chart;
   }
 }

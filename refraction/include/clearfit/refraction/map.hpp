@@ -16,6 +16,9 @@
 
 #include <cstdint>
 #include <limits>
+#include <memory>
+#include <type_traits>
+#include <utility>
 #include <string>
 #include <vector>
 
@@ -43,11 +46,16 @@ struct MapOptions {
   /// exact: every pixel traced. grid: cells of grid_step px with nine traced
   /// nodes (corners, edge midpoints, centre); cells whose nodes are all valid
   /// on one contact component are filled by quadratic interpolation, others
-  /// split down to single pixels. adaptive: like grid, but a cell is filled
-  /// only if two exactly traced check pixels (at 1/4 and 3/4 of its diagonal)
-  /// are within tolerance_um of the interpolation; otherwise it is split
-  /// (quadtree), so cells straddling validity boundaries, creases or the
-  /// critical angle end up traced pixel by pixel.
+  /// split. adaptive: like grid, but a cell is filled only if two exactly
+  /// traced check pixels (at 1/4 and 3/4 of its diagonal) are within
+  /// tolerance_um of the interpolation; otherwise it is split (quadtree).
+  /// In both, a cell of 8 px or less that a validity boundary (or a change of
+  /// contact component) crosses goes to the boundary resolver: the pixels on
+  /// both sides of every status change are traced, so validity and every
+  /// invalid reason are pixel-exact, and the valid pixels behind them are
+  /// filled from a least-squares quadratic through the traced valid pixels
+  /// around the cell where it fits all of them within tolerance_um (traced
+  /// otherwise).
   enum class Mode { exact, grid, adaptive } mode = Mode::exact;
   int grid_step = 32;                    ///< starting cell size, pixels (power of two, 2..256)
   double tolerance_um = 1.0;             ///< adaptive: accepted interpolation error on the skin, µm
@@ -83,18 +91,43 @@ struct MapStats {
   double max_error_um = 0;
 };
 
+/// Allocator whose resize() leaves trivially constructible elements
+/// uninitialised: a map writes every pixel once, and zero-filling 100 MB
+/// before that costs more than some maps take.
+template <class T>
+struct DefaultInitAllocator : std::allocator<T> {
+  template <class U>
+  struct rebind {
+    using other = DefaultInitAllocator<U>;
+  };
+  DefaultInitAllocator() = default;
+  template <class U>
+  DefaultInitAllocator(const DefaultInitAllocator<U>&) noexcept {}
+  template <class U>
+  void construct(U* p) noexcept(std::is_nothrow_default_constructible_v<U>) {
+    ::new (static_cast<void*>(p)) U;
+  }
+  template <class U, class... Args>
+  void construct(U* p, Args&&... args) {
+    ::new (static_cast<void*>(p)) U(std::forward<Args>(args)...);
+  }
+};
+/// One per-pixel array of a map (a std::vector; resize() does not zero).
+template <class T>
+using PixelArray = std::vector<T, DefaultInitAllocator<T>>;
+
 /// Dense per-pixel results, row-major (pixel (x, y) at y * width + x; pixel
 /// (0,0) is the centre of the top-left pixel, as in mrcal).
 struct RefractionMap {
   int width = 0, height = 0;
-  std::vector<PixelStatus> status;
-  std::vector<Vec3> skin_point;              ///< part frame, mm (double); NaN unless valid
-  std::vector<std::int32_t> face;            ///< contact face index (mesh), -1 unless valid
-  std::vector<Eigen::Vector2f> bary;         ///< weights of corners 1 and 2 (corner 0 = 1 − both)
-  std::vector<Eigen::Vector2f> chart_uv;     ///< chart mm; NaN unless valid and a chart was given
-  std::vector<float> incidence_deg;          ///< angle of incidence at entry
-  std::vector<float> contact_deg;            ///< angle of the refracted ray to the contact face normal
-  std::vector<float> transmittance;          ///< Fresnel T entry × T contact (unpolarised)
+  PixelArray<PixelStatus> status;
+  PixelArray<Vec3> skin_point;              ///< part frame, mm (double); NaN unless valid
+  PixelArray<std::int32_t> face;            ///< contact face index (mesh), -1 unless valid
+  PixelArray<Eigen::Vector2f> bary;         ///< weights of corners 1 and 2 (corner 0 = 1 − both)
+  PixelArray<Eigen::Vector2f> chart_uv;     ///< chart mm; NaN unless valid and a chart was given
+  PixelArray<float> incidence_deg;          ///< angle of incidence at entry
+  PixelArray<float> contact_deg;            ///< angle of the refracted ray to the contact face normal
+  PixelArray<float> transmittance;          ///< Fresnel T entry × T contact (unpolarised)
   MapStats stats;
 
   std::size_t index(int x, int y) const { return static_cast<std::size_t>(y) * width + x; }
