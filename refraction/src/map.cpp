@@ -1,6 +1,7 @@
 #include "chart_locator.hpp"
 #include "flat_slab.hpp"
 #include "npy.hpp"
+#include "quadratic_fit.hpp"
 
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/error.hpp>
@@ -115,17 +116,34 @@ struct PixelBox {
   int x0, y0, x1, y1;  // inclusive
 };
 std::optional<PixelBox> part_bound(const Mesh& mesh, const CameraModel& camera, const Rigid3& cam_from_part) {
-  std::vector<Vec3> in_cam(mesh.vertices.size());
-  for (std::size_t i = 0; i < in_cam.size(); ++i) {
-    in_cam[i] = cam_from_part.apply(mesh.vertices[i]);
-    if (!(in_cam[i].z() > 0)) return std::nullopt;
-  }
-  const std::vector<Vec2> q = camera.project(in_cam);
-  double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
-  for (const Vec2& p : q) {
-    if (!p.allFinite()) return std::nullopt;
-    x0 = std::min(x0, p.x()), y0 = std::min(y0, p.y()), x1 = std::max(x1, p.x()), y1 = std::max(y1, p.y());
-  }
+  // Projected in parallel chunks; a vertex behind the camera or one the lens
+  // cannot project gives no bound (NaN poisons the chunk's box).
+  struct Bounds {
+    double x0 = 1e300, y0 = 1e300, x1 = -1e300, y1 = -1e300;
+    bool ok = true;
+  };
+  const Bounds b = tbb::parallel_reduce(
+      tbb::blocked_range<std::size_t>(0, mesh.vertices.size(), 4096), Bounds{},
+      [&](const tbb::blocked_range<std::size_t>& r, Bounds acc) {
+        if (!acc.ok) return acc;
+        std::vector<Vec3> in_cam(r.size());
+        for (std::size_t i = r.begin(); i < r.end(); ++i) {
+          in_cam[i - r.begin()] = cam_from_part.apply(mesh.vertices[i]);
+          if (!(in_cam[i - r.begin()].z() > 0)) return Bounds{.ok = false};
+        }
+        for (const Vec2& p : camera.project(in_cam)) {
+          if (!p.allFinite()) return Bounds{.ok = false};
+          acc.x0 = std::min(acc.x0, p.x()), acc.y0 = std::min(acc.y0, p.y());
+          acc.x1 = std::max(acc.x1, p.x()), acc.y1 = std::max(acc.y1, p.y());
+        }
+        return acc;
+      },
+      [](const Bounds& a, const Bounds& c) {
+        if (!a.ok || !c.ok) return Bounds{.ok = false};
+        return Bounds{std::min(a.x0, c.x0), std::min(a.y0, c.y0), std::max(a.x1, c.x1), std::max(a.y1, c.y1), true};
+      });
+  if (!b.ok || mesh.vertices.empty()) return std::nullopt;
+  const double x0 = b.x0, y0 = b.y0, x1 = b.x1, y1 = b.y1;
   const double margin = 4.0 + 0.01 * std::max(x1 - x0, y1 - y0);
   auto clampi = [](double v, int hi) { return static_cast<int>(std::clamp(v, -1.0, static_cast<double>(hi) + 1)); };
   PixelBox box{clampi(std::ceil(x0 - margin), camera.width - 1), clampi(std::ceil(y0 - margin), camera.height - 1),
@@ -471,19 +489,12 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
   std::vector<char> traced(options.mode == MapOptions::Mode::exact ? 0 : N, 0);
   // Exact trace of the listed pixels that are not traced yet.
   auto trace_pixels = [&](const std::vector<std::uint32_t>& pixels_in) {
-    // Distinct untraced pixels in 16x16 tiles, row-major within a tile:
-    // neighbouring rays go into the same chunk (coherent casts).
-    std::vector<std::uint64_t> key;
-    key.reserve(pixels_in.size());
+    // Distinct untraced pixels, in the callers' order (cell by cell: nearby
+    // pixels go into the same chunk, so the casts stay coherent).
+    std::vector<std::uint32_t> pixels;
+    pixels.reserve(pixels_in.size());
     for (std::uint32_t p : pixels_in)
-      if (!traced[p]) {
-        const std::uint32_t x = p % W, y = p / W;
-        key.push_back((std::uint64_t{y >> 4} << 48) | (std::uint64_t{x >> 4} << 32) | p);
-      }
-    std::sort(key.begin(), key.end());
-    key.erase(std::unique(key.begin(), key.end()), key.end());
-    std::vector<std::uint32_t> pixels(key.size());
-    for (std::size_t i = 0; i < key.size(); ++i) pixels[i] = static_cast<std::uint32_t>(key[i]);
+      if (!traced[p]) traced[p] = 5, pixels.push_back(p);  // 5: queued
     const auto tu = Clock::now();
     rays->ensure(pixels);
     st.unproject_ms += ms_since(tu);
@@ -825,11 +836,6 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
           constexpr int kMargin = 4;
           const int wx0 = std::max(box.x0, c.x0 - kMargin), wx1 = std::min(box.x1, c.x1 + kMargin);
           const int wy0 = std::max(box.y0, c.y0 - kMargin), wy1 = std::min(box.y1, c.y1 + kMargin);
-          const double cx = 0.5 * (c.x0 + c.x1), cy = 0.5 * (c.y0 + c.y1), scale = 1.0 / std::max(1, c.x1 - c.x0);
-          auto basis = [&](int x, int y) {
-            const double u = (x - cx) * scale, v = (y - cy) * scale;
-            return Eigen::Matrix<double, 1, 6>(1, u, v, u * u, u * v, v * v);
-          };
           std::vector<std::uint32_t> known;
           for (int y = wy0; y <= wy1; ++y)
             for (int x = wx0; x <= wx1; ++x)
@@ -838,22 +844,24 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
           const int comp = ok ? component[map.face[known[0]]] : -1;
           for (std::size_t k = 0; ok && k < known.size(); ++k) ok = component[map.face[known[k]]] == comp;
           constexpr int kCols = 8;  // skin point, incidence, contact, transmittance, chart uv
-          Eigen::Matrix<double, 6, kCols> coef;
+          using Fit = refraction_detail::QuadraticFit<kCols>;
+          auto values = [&](std::uint32_t p) {
+            Fit::Row r;
+            const Eigen::Vector2d uv = locator ? Eigen::Vector2d(map.chart_uv[p].cast<double>()) : Eigen::Vector2d::Zero();
+            r << map.skin_point[p].transpose(), map.incidence_deg[p], map.contact_deg[p], map.transmittance[p], uv.transpose();
+            return r;
+          };
+          Fit fit(0.5 * (c.x0 + c.x1), 0.5 * (c.y0 + c.y1), 1.0 / std::max(1, c.x1 - c.x0));
           if (ok) {
-            Eigen::MatrixXd A(known.size(), 6), B(known.size(), kCols);
-            for (std::size_t k = 0; k < known.size(); ++k) {
-              const std::uint32_t p = known[k];
-              A.row(k) = basis(static_cast<int>(p % W), static_cast<int>(p / W));
-              const Eigen::Vector2d uv = locator ? Eigen::Vector2d(map.chart_uv[p].cast<double>()) : Eigen::Vector2d::Zero();
-              B.row(k) << map.skin_point[p].transpose(), map.incidence_deg[p], map.contact_deg[p], map.transmittance[p],
-                  uv.transpose();
-            }
-            coef = A.colPivHouseholderQr().solve(B);
-            const Eigen::MatrixXd R = A * coef - B;
+            for (std::uint32_t p : known) fit.add(static_cast<int>(p % W), static_cast<int>(p / W), values(p));
+            ok = fit.solve();
             double err = 0;
-            for (std::size_t k = 0; k < known.size(); ++k)
-              err = std::max({err, R.row(k).head<3>().norm(), R.row(k).tail<2>().norm()});
-            ok = std::isfinite(err) && err <= tol_mm;
+            for (std::size_t k = 0; ok && k < known.size(); ++k) {
+              const std::uint32_t p = known[k];
+              const Fit::Row r = fit.at(static_cast<int>(p % W), static_cast<int>(p / W)) - values(p);
+              err = std::max({err, r.head<3>().norm(), r.tail<2>().norm()});
+            }
+            ok = ok && std::isfinite(err) && err <= tol_mm;
             fit_err[ci] = ok ? err : 0;
           }
           if (!ok) {
@@ -863,7 +871,7 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
           long long n = 0;
           for (std::uint32_t p : todo) {
             const int x = static_cast<int>(p % W), y = static_cast<int>(p / W);
-            const Eigen::Matrix<double, 1, kCols> v = basis(x, y) * coef;
+            const Fit::Row v = fit.at(x, y);
             Interp r;
             if (locator) {
               const Vec2 uv(v[6], v[7]);
@@ -874,13 +882,23 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
               }
               r = Interp{hit->point, hit->face, hit->bary, uv};
             } else {
-              // On the face of the nearest traced valid pixel.
+              // On the face of the nearest traced valid pixel: the 5x5
+              // neighbourhood first, else any known pixel.
               std::uint32_t near = known[0];
               int best = std::numeric_limits<int>::max();
-              for (std::uint32_t k : known) {
-                const int dx = static_cast<int>(k % W) - x, dy = static_cast<int>(k / W) - y;
-                if (dx * dx + dy * dy < best) best = dx * dx + dy * dy, near = k;
-              }
+              for (int dy = -2; dy <= 2; ++dy)
+                for (int dx = -2; dx <= 2; ++dx) {
+                  const int xx = x + dx, yy = y + dy;
+                  if (xx < box.x0 || xx > box.x1 || yy < box.y0 || yy > box.y1) continue;
+                  const std::uint32_t k = idx(xx, yy);
+                  if (traced[k] == 1 && map.status[k] == PixelStatus::valid && dx * dx + dy * dy < best)
+                    best = dx * dx + dy * dy, near = k;
+                }
+              if (best == std::numeric_limits<int>::max())
+                for (std::uint32_t k : known) {
+                  const int dx = static_cast<int>(k % W) - x, dy = static_cast<int>(k / W) - y;
+                  if (dx * dx + dy * dy < best) best = dx * dx + dy * dy, near = k;
+                }
               r.point = v.head<3>().transpose();
               r.face = map.face[near];
               r.uv = Vec2::Constant(std::numeric_limits<double>::quiet_NaN());
@@ -920,14 +938,28 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
         return k == 0 ? std::pair{c.x0 + dx, c.y0 + dy} : std::pair{c.x1 - dx, c.y1 - dy};
       };
       std::vector<Cell> boundary;
+      bool first_level = true;
       while (!cells.empty()) {
+        // A split cell's children have the parent's nodes as corners: a child
+        // whose corners differ (status or contact component) is crossed by a
+        // boundary whatever its checks say, so they are not traced.
+        auto corners_differ = [&](const Cell& c) {
+          const std::uint32_t k[4] = {idx(c.x0, c.y0), idx(c.x1, c.y0), idx(c.x0, c.y1), idx(c.x1, c.y1)};
+          const PixelStatus s0 = map.status[k[0]];
+          for (std::uint32_t p : k) {
+            if (map.status[p] != s0) return true;
+            if (s0 == PixelStatus::valid && component[map.face[p]] != component[map.face[k[0]]]) return true;
+          }
+          return false;
+        };
         std::vector<std::uint32_t> batch;
         for (const Cell& c : cells) {
           const Nodes q = nodes_of(c);
           batch.insert(batch.end(), q.pixel, q.pixel + q.n);
-          if (!done(c))
+          if (!done(c) && (first_level || !corners_differ(c)))
             for (int k = 0; k < 2; ++k) batch.push_back(idx(check_xy(c, k).first, check_xy(c, k).second));
         }
+        first_level = false;
         trace_pixels(batch);
         // Decide every cell (in parallel), then fill the accepted ones. A pixel
         // belongs to the cell with x0 <= x < x1 and y0 <= y < y1 (or on the
