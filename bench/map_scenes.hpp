@@ -156,6 +156,7 @@ inline Floor measure_floor(const Scene& scene, const RayGrid& rays, const Rigid3
 struct MapError {
   long long compared = 0;        ///< pixels valid in both maps
   long long validity_diff = 0;   ///< pixels valid in exactly one of them
+  long long reason_diff = 0;     ///< pixels invalid in both, for different reasons
   double median_um = 0, p99_um = 0, max_um = 0;
 };
 
@@ -169,6 +170,7 @@ inline MapError compare_maps(const RefractionMap& map, const RefractionMap& exac
     const bool a = map.status[p] == PixelStatus::valid, b = exact.status[p] == PixelStatus::valid;
     if (a && b) d.push_back((map.skin_point[p] - exact.skin_point[p]).norm() * 1e3);
     else if (a != b) ++e.validity_diff;
+    else if (!a && map.status[p] != exact.status[p]) ++e.reason_diff;
   }
   e.compared = static_cast<long long>(d.size());
   if (d.empty()) return e;

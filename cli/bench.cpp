@@ -110,7 +110,7 @@ std::string csv_text(const std::vector<Row>& rows, int repeat) {
   o.precision(6);
   o << "shape,width,height,triangles,mode,param,time_ms,trace_ms,floor_ms,ratio_to_floor,speedup_vs_exact,"
        "first_map_ms,first_unproject_ms,pixels,traced,interpolated,valid,coverage,median_um,p99_um,max_um,estimated_max_um,"
-       "validity_diff,repeat,floor_recast_ms\n";
+       "validity_diff,reason_diff,repeat,floor_recast_ms\n";
   for (const Row& r : rows) {
     const auto x = r.size.find('x');
     o << r.shape << ',' << r.size.substr(0, x) << ',' << r.size.substr(x + 1) << ',' << r.triangles << ','
@@ -118,24 +118,24 @@ std::string csv_text(const std::vector<Row>& rows, int repeat) {
       << r.param << ',' << r.ms << ',' << r.trace_ms << ',' << r.floor_ms << ',' << r.ms / r.floor_ms << ','
       << r.exact_ms / r.ms << ',' << r.first_ms << ',' << r.unproject_ms << ',' << r.pixels << ',' << r.traced << ',' << r.interpolated
       << ',' << r.valid << ',' << r.coverage << ',' << r.err.median_um << ',' << r.err.p99_um << ',' << r.err.max_um
-      << ',' << r.est_max_um << ',' << r.err.validity_diff << ',' << repeat << ',' << r.floor_recast_ms << '\n';
+      << ',' << r.est_max_um << ',' << r.err.validity_diff << ',' << r.err.reason_diff << ',' << repeat << ',' << r.floor_recast_ms << '\n';
   }
   return o.str();
 }
 
 void print_table(const std::vector<Row>& rows) {
-  std::printf("%-6s %-9s %-12s %8s %6s %8s %6s %6s %6s %6s %8s %8s %6s %9s %9s %9s %6s %6s\n", "shape", "size", "mode", "time_ms",
+  std::printf("%-6s %-9s %-12s %8s %6s %8s %6s %6s %6s %6s %8s %8s %6s %9s %9s %9s %6s %6s %6s\n", "shape", "size", "mode", "time_ms",
               "xfloor", "floor_ms", "xfl_rc", "speed", "cpu_xf", "cpu_sp", "first_ms", "unproj", "traced", "median_um", "p99_um", "max_um", "vdiff",
-              "cover");
+              "rdiff", "cover");
   std::string last;
   for (const Row& r : rows) {
     if (!last.empty() && last != r.shape + r.size) std::printf("\n");
     last = r.shape + r.size;
-    std::printf("%-6s %-9s %-12s %8.1f %6.2f %8.1f %6.2f %5.1fx %6.2f %5.1fx %8.1f %8.1f %5.1f%% %9.3g %9.3g %9.3g %6lld %5.1f%%\n",
+    std::printf("%-6s %-9s %-12s %8.1f %6.2f %8.1f %6.2f %5.1fx %6.2f %5.1fx %8.1f %8.1f %5.1f%% %9.3g %9.3g %9.3g %6lld %6lld %5.1f%%\n",
                 r.shape.c_str(), r.size.c_str(), r.mode.c_str(), r.ms, r.ms / r.floor_ms, r.floor_ms,
                 r.ms / r.floor_recast_ms, r.exact_ms / r.ms, r.cpu_ms / r.floor_cpu_ms, r.exact_cpu_ms / r.cpu_ms,
                 r.first_ms, r.unproject_ms, 100.0 * r.traced / std::max(1LL, r.pixels), r.err.median_um, r.err.p99_um,
-                r.err.max_um, r.err.validity_diff, 100 * r.coverage);
+                r.err.max_um, r.err.validity_diff, r.err.reason_diff, 100 * r.coverage);
   }
 }
 
@@ -247,7 +247,7 @@ Run add_bench(CLI::App& app) {
     std::string sizes = "640x480,1920x1080", shapes = "slab,band,dome,bumps",
                 modes = "exact,grid:2,grid:8,grid:32,adaptive:0.1,adaptive:1,adaptive:10", csv, plot, dump;
     int repeat = 3;
-    bool fresh_memory = false;
+    bool fresh_memory = false, exact_reasons = false;
   };
   auto o = std::make_shared<Opts>();
   CLI::App* bench = app.add_subcommand("bench", "Benchmarks (run time against error)");
@@ -263,6 +263,8 @@ Run add_bench(CLI::App& app) {
                  "Write each case's map as raw arrays to DIR/SHAPE_SIZE_MODE.bin (status u8, skin_point 3 f64, face "
                  "i32, bary 2 f32, incidence, contact, transmittance f32) to compare builds");
   sub->add_option("--repeat", o->repeat, "Timed runs per case; the best is reported")->check(CLI::Range(1, 100))->capture_default_str();
+  sub->add_flag("--exact-reasons", o->exact_reasons,
+                "Grid/adaptive maps resolve boundaries between two invalid reasons too (MapOptions::exact_reasons)");
   sub->add_flag("--fresh-memory", o->fresh_memory,
                 "Let freed memory go back to the OS (glibc default): every map then pays for first touches of its "
                 "arrays, ~6 ms/MB on some VMs");
@@ -305,6 +307,7 @@ Run add_bench(CLI::App& app) {
           opt.mode = m.mode;
           opt.grid_step = m.step;
           opt.tolerance_um = m.tol_um;
+          opt.exact_reasons = o->exact_reasons;
           RefractionMap best;
           double best_cpu = 1e300;
           for (int r = 0; r < o->repeat; ++r) {
@@ -360,7 +363,9 @@ Run add_bench(CLI::App& app) {
                 "#   best of the runs; steadier than wall time when other processes share the cores)\n"
                 "# first_ms = the first (exact) map of the shape and size, with the unprojection (unproj) of its\n"
                 "#   pixels; the later maps reuse the cached rays\n"
-                "# errors: |skin point - exact| over pixels valid in both; vdiff = pixels valid in only one\n",
+                "# errors: |skin point - exact| over pixels valid in both; vdiff = pixels valid in only one;\n"
+                "#   rdiff = pixels invalid in both for different reasons (adaptive/grid: nearest node's reason where two\n"
+                "#   invalid reasons meet)\n",
                 o->repeat, o->fresh_memory ? ", fresh memory" : "");
     print_table(rows);
     // Both outputs are rendered before either is written.

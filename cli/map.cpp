@@ -32,6 +32,7 @@ nlohmann::json stats_json(const RefractionMap& map, const std::string& mesh, con
           {"mode", s.mode},
           {"grid_step", opt.mode == MapOptions::Mode::exact ? nlohmann::json(nullptr) : nlohmann::json(opt.grid_step)},
           {"tolerance_um", opt.mode == MapOptions::Mode::adaptive ? nlohmann::json(opt.tolerance_um) : nlohmann::json(nullptr)},
+          {"exact_reasons", opt.mode == MapOptions::Mode::exact || opt.exact_reasons},
           {"interpolated", s.interpolated},
           {"cache", cache},
           {"fast_path", s.fast_path},

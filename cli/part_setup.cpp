@@ -39,6 +39,9 @@ void add_part_options(CLI::App& sub, PartOptions& o) {
       ->check(CLI::IsMember({"exact", "grid", "adaptive"}))->capture_default_str();
   sub.add_option("--grid-step", o.grid_step, "Starting cell size for grid/adaptive, pixels (power of two, 2..256)")->capture_default_str();
   sub.add_option("--tolerance-um", o.tolerance_um, "Adaptive: accepted interpolation error on the skin, micrometres")->capture_default_str();
+  sub.add_flag("--exact-reasons", o.exact_reasons,
+               "Grid/adaptive: resolve boundaries between two invalid reasons pixel by pixel too (default: validity "
+               "boundaries only; elsewhere a pixel takes its nearest traced node's reason)");
   sub.add_option("--chart", o.chart, "Chart of the contact surface used for interpolation (none: interpolate in 3D)")
       ->check(CLI::IsMember({"auto", "planar", "lscm", "arap", "none"}))->capture_default_str();
   sub.add_option("--cache", o.cache, "Cache folder for maps (default: $XDG_CACHE_HOME/clearfit or ~/.cache/clearfit)");
@@ -66,6 +69,7 @@ void take_scene_part_options(const SceneFile& sc, const CLI::App& sub, PartOptio
   take("--chart", o.chart, sc.chart);
   take("--grid-step", o.grid_step, sc.grid_step);
   take("--tolerance-um", o.tolerance_um, sc.tolerance_um);
+  take("--exact-reasons", o.exact_reasons, sc.exact_reasons);
   auto member = [&](const std::string& key, const std::string& v, std::initializer_list<const char*> ok) {
     for (const char* k : ok)
       if (v == k) return;
@@ -111,6 +115,7 @@ std::unique_ptr<LoadedPart> load_part_scene(const PartOptions& o, bool need_char
   opt.mode = o.mode == "grid" ? MapOptions::Mode::grid : o.mode == "adaptive" ? MapOptions::Mode::adaptive : MapOptions::Mode::exact;
   opt.grid_step = o.grid_step;
   opt.tolerance_um = o.tolerance_um;
+  opt.exact_reasons = o.exact_reasons;
   if (need_chart && o.chart == "none")
     throw InputError("", "--chart none", "this command needs a chart of the contact surface", "drop --chart none");
   if (o.chart != "none" && (opt.mode != MapOptions::Mode::exact || need_chart)) {

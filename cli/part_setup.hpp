@@ -21,7 +21,7 @@ struct PartOptions {
   std::string mesh, camera, pose, normals = "smooth", mode = "exact", chart = "auto", cache;
   int grid_step = 32;
   double tolerance_um = 1.0;
-  bool no_cache = false;
+  bool no_cache = false, exact_reasons = false;
   MeshOptions mesh_opt;
   ContactOptions contact;
   double ior = 1.49, medium_ior = 1.0, skin_ior = 1.4;

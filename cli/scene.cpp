@@ -52,12 +52,13 @@ SceneFile read_scene(const std::filesystem::path& file) {
     }
   }
   if (const YAML::Node m = root["map"]) {
-    r.only_keys(m, "map", {"normals", "mode", "grid_step", "tolerance_um", "chart"});
+    r.only_keys(m, "map", {"normals", "mode", "grid_step", "tolerance_um", "chart", "exact_reasons"});
     s.normals = r.get<std::string>(m, "normals", "map.normals", "smooth or flat");
     s.mode = r.get<std::string>(m, "mode", "map.mode", "exact, grid or adaptive");
     s.chart = r.get<std::string>(m, "chart", "map.chart", "auto, planar, lscm, arap or none");
     s.grid_step = r.get<int>(m, "grid_step", "map.grid_step", "a whole number of pixels");
     s.tolerance_um = r.get<double>(m, "tolerance_um", "map.tolerance_um", "a number of micrometres");
+    s.exact_reasons = r.get<bool>(m, "exact_reasons", "map.exact_reasons", "true or false");
   }
   if (const YAML::Node o = root["outputs"]) {
     r.only_keys(o, "outputs", {"map", "stats", "inverse", "texel_mm", "folder"});

@@ -11,7 +11,7 @@
 //   contact: {group: contact}    # or {faces: faces.txt} or {normal: [0, 0, -1], angle_deg: 30}
 //   camera: camera.cameramodel
 //   pose: pose.json              # optional; default: the cameramodel's extrinsics
-//   map: {normals: smooth, mode: adaptive, grid_step: 16, tolerance_um: 1.0, chart: auto}
+//   map: {normals: smooth, mode: adaptive, grid_step: 16, tolerance_um: 1.0, chart: auto, exact_reasons: false}
 //   outputs: {map: out/map.npy, stats: out/map-stats.json, inverse: out/inverse.npy, texel_mm: 0.05,
 //             folder: out}
 //   captures / calibration / assess / simulation: sections read by the commands that use
@@ -37,6 +37,7 @@ struct SceneFile {
   std::optional<std::string> normals, mode, chart;
   std::optional<int> grid_step;
   std::optional<double> tolerance_um;
+  std::optional<bool> exact_reasons;
   std::optional<std::string> out_map, out_stats, out_inverse;
   std::optional<double> texel_mm;
   std::optional<std::string> out_folder;

@@ -801,11 +801,19 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
         });
         std::vector<std::uint32_t> pending;
         for (const auto& v : per_cell) pending.insert(pending.end(), v.begin(), v.end());
+        // Validity boundaries are resolved; where two invalid reasons meet
+        // (a miss beside a ray that enters but exits elsewhere, say) the
+        // pixels keep their nearest node's reason unless exact_reasons: no
+        // skin point depends on it.
         auto borders_other = [&](std::uint32_t p) {
           const int x = static_cast<int>(p % W), y = static_cast<int>(p / W);
           const PixelStatus s = map.status[p];
-          return (x > box.x0 && map.status[p - 1] != s) || (x < box.x1 && map.status[p + 1] != s) ||
-                 (y > box.y0 && map.status[p - W] != s) || (y < box.y1 && map.status[p + W] != s);
+          auto other = [&](std::uint32_t n) {
+            return options.exact_reasons ? map.status[n] != s
+                                         : (map.status[n] == PixelStatus::valid) != (s == PixelStatus::valid);
+          };
+          return (x > box.x0 && other(p - 1)) || (x < box.x1 && other(p + 1)) || (y > box.y0 && other(p - W)) ||
+                 (y < box.y1 && other(p + W));
         };
         std::vector<char> pick;
         while (!pending.empty()) {
@@ -853,12 +861,16 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
           };
           Fit fit(0.5 * (c.x0 + c.x1), 0.5 * (c.y0 + c.y1), 1.0 / std::max(1, c.x1 - c.x0));
           if (ok) {
-            for (std::uint32_t p : known) fit.add(static_cast<int>(p % W), static_cast<int>(p / W), values(p));
+            std::vector<Fit::Row> known_values(known.size());
+            for (std::size_t k = 0; k < known.size(); ++k) {
+              known_values[k] = values(known[k]);
+              fit.add(static_cast<int>(known[k] % W), static_cast<int>(known[k] / W), known_values[k]);
+            }
             ok = fit.solve();
             double err = 0;
             for (std::size_t k = 0; ok && k < known.size(); ++k) {
               const std::uint32_t p = known[k];
-              const Fit::Row r = fit.at(static_cast<int>(p % W), static_cast<int>(p / W)) - values(p);
+              const Fit::Row r = fit.at(static_cast<int>(p % W), static_cast<int>(p / W)) - known_values[k];
               err = std::max({err, r.head<3>().norm(), r.tail<2>().norm()});
             }
             ok = ok && std::isfinite(err) && err <= tol_mm;

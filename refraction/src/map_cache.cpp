@@ -10,6 +10,9 @@ namespace clearfit {
 namespace {
 
 constexpr char kMagic[8] = {'C', 'F', 'M', 'A', 'P', '0', '0', '1'};
+// Bumped when compute_refraction_map's results change for the same inputs
+// (2: the adaptive mode's boundary resolver), so older cached maps are not reused.
+constexpr int kMapAlgorithm = 2;
 
 struct Fnv {
   std::uint64_t h = 14695981039346656037ull;
@@ -61,7 +64,8 @@ std::uint64_t map_inputs_hash(const TraceScene& scene, const CameraModel& camera
   f.bytes(cam_from_part.rotation.data(), 9 * sizeof(double));
   f.bytes(cam_from_part.translation.data(), 3 * sizeof(double));
   f.value(o.indices.n_medium), f.value(o.indices.n_part), f.value(o.indices.n_skin);
-  f.value(o.normals), f.value(o.mode), f.value(o.grid_step), f.value(o.tolerance_um);
+  f.value(o.normals), f.value(o.mode), f.value(o.grid_step), f.value(o.tolerance_um), f.value(o.exact_reasons);
+  f.value(kMapAlgorithm);
   f.value(o.fast_paths), f.value(o.cull);
   return f.h;
 }

@@ -18,7 +18,7 @@ class QuadraticFit {
   void add(int x, int y, const Row& value) {
     if (n_++ == 0) origin_ = value;
     const Basis a = basis(x, y);
-    ata_.noalias() += a.transpose() * a;
+    ata_.template selfadjointView<Eigen::Lower>().rankUpdate(a.transpose());
     atb_.noalias() += a.transpose() * (value - origin_);
   }
   int size() const { return n_; }
@@ -27,7 +27,7 @@ class QuadraticFit {
   /// e.g. all on two rows, where v² could be anything between them.
   bool solve() {
     if (n_ < 6) return false;
-    const Eigen::LDLT<Eigen::Matrix<double, 6, 6>> ldlt(ata_);
+    const Eigen::LDLT<Eigen::Matrix<double, 6, 6>, Eigen::Lower> ldlt(ata_);
     if (ldlt.info() != Eigen::Success) return false;
     // An exactly singular system has a zero pivot (and LDLT's rcond estimate
     // then describes its pseudo-inverse); a nearly singular one a tiny rcond.

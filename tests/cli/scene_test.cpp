@@ -36,6 +36,7 @@ camera: cam.cameramodel
 map:
   mode: adaptive
   tolerance_um: 2.0
+  exact_reasons: true
 outputs:
   map: out/map.npy
   stats: out/stats.json
@@ -50,6 +51,7 @@ TEST_F(Scene, PathsAreRelativeToTheSceneAndTheCommandLineWins) {
   auto stats = nlohmann::json::parse(read_text(work() / "part" / "out" / "stats.json"));
   EXPECT_EQ(stats["mode"], "adaptive");
   EXPECT_EQ(stats["tolerance_um"], 2.0);
+  EXPECT_EQ(stats["exact_reasons"], true);
   EXPECT_EQ(stats["indices"]["part"], 1.49);
   EXPECT_EQ(stats["fast_path"], "flat-slab");
   r = run({"map", "--scene", "part/scene.yaml", "--no-cache", "--mode", "exact", "--ior", "1.55", "--stats", "s.json"});
@@ -70,6 +72,8 @@ TEST_F(Scene, BadKeysAndTypesAreNamedWithTheirLine) {
   expect_input_error({"map", "--scene", "part/scene.yaml"}, {"scene.yaml", "not valid YAML"});
   scene("mesh: slab.obj\nmap:\n  mode: fast\n");
   expect_input_error({"map", "--scene", "part/scene.yaml"}, {"map.mode", "'fast'"});
+  scene("mesh: slab.obj\nmap:\n  exact_reasons: sometimes\n");
+  expect_input_error({"map", "--scene", "part/scene.yaml"}, {"line 3", "map.exact_reasons", "true or false"});
   expect_input_error({"map", "--scene", "part/missing.yaml"}, {"missing.yaml"});
   scene("");
   expect_input_error({"map", "--scene", "part/scene.yaml"}, {"scene.yaml", "empty"});

@@ -51,14 +51,18 @@ struct MapOptions {
   /// tolerance_um of the interpolation; otherwise it is split (quadtree).
   /// In both, a cell of 8 px or less that a validity boundary (or a change of
   /// contact component) crosses goes to the boundary resolver: the pixels on
-  /// both sides of every status change are traced, so validity and every
-  /// invalid reason are pixel-exact, and the valid pixels behind them are
-  /// filled from a least-squares quadratic through the traced valid pixels
-  /// around the cell where it fits all of them within tolerance_um (traced
-  /// otherwise).
+  /// both sides of every change of validity are traced, so validity
+  /// reason are pixel-exact, and the valid pixels behind them are filled from
+  /// a least-squares quadratic through the traced valid pixels around the cell
+  /// where it fits all of them within tolerance_um (traced otherwise). Where
+  /// two invalid reasons meet, the pixels take their nearest node's reason
+  /// (nodes are 4 px apart there) unless exact_reasons.
   enum class Mode { exact, grid, adaptive } mode = Mode::exact;
   int grid_step = 32;                    ///< starting cell size, pixels (power of two, 2..256)
   double tolerance_um = 1.0;             ///< adaptive: accepted interpolation error on the skin, µm
+  /// grid/adaptive: trace both sides of boundaries between two invalid
+  /// reasons too (the reason image then equals the exact trace's; slower).
+  bool exact_reasons = false;
   bool fast_paths = true;                ///< straight rays when n_medium == n_part; closed form for a flat slab
   bool cull = true;                      ///< trace only pixels inside the part's projected bound
   /// Throws std::invalid_argument naming the field, its value and the rule.
