@@ -2,6 +2,7 @@
 #include <clearfit/reports/report_html.hpp>
 
 #include "report_html_glb.hpp"
+#include "report_view.hpp"
 
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/error.hpp>
@@ -206,7 +207,22 @@ using View = detail::PageView;
 // The views of the 3D section from heatmap.glb: what the file shows (pressure,
 // or the signal when uncalibrated) and, when the file is a pressure heatmap
 // with a _BLANCH attribute, the same mesh recoloured by the blanching signal.
-std::vector<View> make_views(const detail::HeatmapGlb& g, const json& report, std::vector<std::string>& notes) {
+// A heatmap of more than max_view_triangles triangles (0: no limit) is
+// simplified first, for every view alike (report_view.hpp).
+std::vector<View> make_views(const detail::HeatmapGlb& full, const json& report, std::size_t max_view_triangles,
+                             std::vector<std::string>& notes) {
+  std::optional<detail::HeatmapGlb> simplified;
+  if (const std::size_t n = full.triangles.size() / 3; max_view_triangles > 0 && n > max_view_triangles) {
+    simplified = detail::simplify_heatmap_for_view(full, max_view_triangles);
+    if (simplified)
+      notes.push_back("3D view simplified from " + std::to_string(n) + " to " +
+                      std::to_string(simplified->triangles.size() / 3) + " triangles (heatmap.glb keeps all " +
+                      std::to_string(n) + ")");
+    else
+      notes.push_back("3D view shows all " + std::to_string(n) +
+                      " triangles: heatmap.glb's layout (sparse accessors or unshared indices) cannot be simplified");
+  }
+  const detail::HeatmapGlb& g = simplified ? *simplified : full;
   std::vector<View> views;
   const std::string quantity = at(g.info, "quantity").is_string() ? g.info["quantity"].get<std::string>() : "pressure_kpa";
   const std::string colormap = at(g.info, "colormap").is_string() ? g.info["colormap"].get<std::string>() : "viridis";
@@ -586,7 +602,7 @@ HtmlReportResult write_report_html(const fs::path& folder, const HtmlReportOptio
   std::vector<View> views;
   if (const json& name = at(outputs, "heatmap_glb"); name.is_string() && fs::is_regular_file(folder / name.get<std::string>())) {
     glb = detail::load_heatmap_glb(folder / name.get<std::string>());
-    views = make_views(*glb, report, result.notes);
+    views = make_views(*glb, report, options.max_view_triangles, result.notes);
   } else {
     result.notes.push_back("no heatmap .glb in the output folder: the report has no 3D view");
   }

@@ -19,8 +19,11 @@ struct HtmlReportOptions {
   /// (CLEARFIT_REPORT_ASSETS_DIR, default reports/assets of the source tree).
   std::filesystem::path assets_dir;
   /// The 3D view shows at most this many triangles; a larger heatmap is
-  /// simplified for the view only (meshoptimizer-free: see report_view.cpp),
-  /// heatmap.glb itself is untouched. 0: never simplify.
+  /// simplified for the page only (reports/src/report_view.cpp: OpenMesh's
+  /// quadric decimater, halfedge collapses that keep original vertices and so
+  /// their colours; the part's rim and the heatmap's seams are kept exactly),
+  /// with a note in HtmlReportResult::notes; heatmap.glb itself is untouched.
+  /// 0: never simplify.
   std::size_t max_view_triangles = 400000;
   /// Title above the report; empty: "Fit report: <part mesh file name>".
   std::string title;
