@@ -645,9 +645,6 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
           }
         return count;
       };
-      // The same without a chart: the skin points themselves, evaluated per
-      // row (the quadratic in y folded first), each on the face of the
-      // heaviest node. Gives interpolate()'s result up to rounding.
       // The same without a chart: the skin points themselves, each on the face
       // of the heaviest node. Prepared per cell, then written row by row
       // across all cells of a level (long runs along the rows write at about
