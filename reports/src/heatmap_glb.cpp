@@ -3,6 +3,8 @@
 #include <clearfit/reports/colormap.hpp>
 #include <clearfit/reports/heatmap_glb.hpp>
 
+#include "report_html_glb.hpp"
+
 #include <tiny_gltf.h>
 
 #include <algorithm>
@@ -61,18 +63,7 @@ tinygltf::Value to_value(const nlohmann::json& j) {
 struct BufferBuilder {
   tinygltf::Model& model;
   int add_view(const void* data, std::size_t bytes, int target, const std::string& name) {
-    auto& buf = model.buffers[0].data;
-    buf.resize((buf.size() + 3) / 4 * 4, 0);
-    tinygltf::BufferView view;
-    view.buffer = 0;
-    view.byteOffset = buf.size();
-    view.byteLength = bytes;
-    view.target = target;
-    view.name = name;
-    const auto* p = static_cast<const unsigned char*>(data);
-    buf.insert(buf.end(), p, p + bytes);
-    model.bufferViews.push_back(std::move(view));
-    return static_cast<int>(model.bufferViews.size()) - 1;
+    return reports::detail::append_buffer_view(model.buffers[0].data, model.bufferViews, data, bytes, target, 0, name);
   }
   // A float accessor of `components` per element (1, 2 or 3) with min/max.
   int add_floats(const std::vector<float>& data, int components, const std::string& name) {

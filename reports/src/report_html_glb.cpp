@@ -7,6 +7,22 @@
 #include <sstream>
 
 namespace clearfit::reports::detail {
+
+int append_buffer_view(std::vector<unsigned char>& buffer, std::vector<tinygltf::BufferView>& views,
+                       const void* data, std::size_t bytes, int target, int stride, const std::string& name) {
+  buffer.resize((buffer.size() + 3) / 4 * 4, 0);
+  tinygltf::BufferView view;
+  view.buffer = 0;
+  view.byteOffset = buffer.size();
+  view.byteLength = bytes;
+  view.byteStride = stride;
+  view.target = target;
+  view.name = name;
+  const auto* p = static_cast<const unsigned char*>(data);
+  buffer.insert(buffer.end(), p, p + bytes);
+  views.push_back(std::move(view));
+  return static_cast<int>(views.size()) - 1;
+}
 namespace {
 
 const unsigned char* accessor_data(const tinygltf::Model& model, const tinygltf::Accessor& acc, int& stride,

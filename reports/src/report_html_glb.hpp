@@ -33,6 +33,12 @@ struct HeatmapGlb {
   std::vector<float> scalar(const std::string& name) const;
 };
 
+/// Appends `bytes` bytes at `data` to `buffer` (4-byte aligned first) as a new
+/// view of buffer 0 at the end of `views` (target, byteStride 0 = packed);
+/// returns its index.
+int append_buffer_view(std::vector<unsigned char>& buffer, std::vector<tinygltf::BufferView>& views,
+                       const void* data, std::size_t bytes, int target, int stride, const std::string& name);
+
 /// Loads `path`. Throws InputError naming the file when it cannot be read, is
 /// not a glTF binary, or lacks a triangle mesh with float POSITION.
 HeatmapGlb load_heatmap_glb(const std::filesystem::path& path);

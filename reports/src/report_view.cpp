@@ -348,19 +348,8 @@ std::optional<HeatmapGlb> simplify_heatmap_for_view(const HeatmapGlb& g, std::si
   r.mesh = g.mesh;
   std::vector<unsigned char> data;
   std::vector<tinygltf::BufferView> views;
-  auto add_view = [&](const unsigned char* bytes, std::size_t n, int target, int stride,
-                      const std::string& name) {
-    data.resize((data.size() + 3) / 4 * 4, 0);
-    tinygltf::BufferView view;
-    view.buffer = 0;
-    view.byteOffset = data.size();
-    view.byteLength = n;
-    view.byteStride = stride;
-    view.target = target;
-    view.name = name;
-    data.insert(data.end(), bytes, bytes + n);
-    views.push_back(std::move(view));
-    return static_cast<int>(views.size()) - 1;
+  auto add_view = [&](const unsigned char* bytes, std::size_t n, int target, int stride, const std::string& name) {
+    return append_buffer_view(data, views, bytes, n, target, stride, name);
   };
   std::vector<int> view_map(m.bufferViews.size(), -1);
   auto copy_view = [&](int old) {
