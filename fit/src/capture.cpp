@@ -306,15 +306,7 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
             code += g;
           };
           for (int x = x0; x < lo; ++x) add(x, 0);
-          const cv::Vec3b* row = src + roi.x + d.x;
-          for (int x = lo; x < hi; ++x) {
-            const std::uint8_t g = row[x][1];
-            const float v = lut[g];
-            dst[x] += sign * v;
-            sum += v;
-            saturated += g == 255;
-            code += g;
-          }
+          for (int x = lo; x < hi; ++x) add(x, roi.x + d.x + x);
           for (int x = hi; x < x1; ++x) add(x, info.width - 1);
           block[b] = sum;
         }

@@ -320,20 +320,7 @@ void check_scene(const TraceScene& scene) {
     throw InputError(scene.mesh->source, "contact surface", "has no faces", "choose the faces the skin touches");
 }
 
-// Sets pixel p to "outside" with every field NaN / -1.
-void reset(RefractionMap& map, std::size_t p) {
-  constexpr double dnan = std::numeric_limits<double>::quiet_NaN();
-  map.status[p] = PixelStatus::outside;
-  map.skin_point[p] = Vec3(dnan, dnan, dnan);
-  map.face[p] = -1;
-  map.bary[p] = Eigen::Vector2f(fnan, fnan);
-  map.chart_uv[p] = Eigen::Vector2f(fnan, fnan);
-  map.incidence_deg[p] = fnan;
-  map.contact_deg[p] = fnan;
-  map.transmittance[p] = fnan;
-}
-
-// reset() for the n pixels from p on, a field at a time; status `why`.
+// Sets the n pixels from p on to `why` with every field NaN / -1, a field at a time.
 void reset_span(RefractionMap& map, std::size_t p, std::size_t n, PixelStatus why = PixelStatus::outside) {
   constexpr double dnan = std::numeric_limits<double>::quiet_NaN();
   std::fill_n(map.status.begin() + p, n, why);
@@ -345,6 +332,9 @@ void reset_span(RefractionMap& map, std::size_t p, std::size_t n, PixelStatus wh
   std::fill_n(map.contact_deg.begin() + p, n, fnan);
   std::fill_n(map.transmittance.begin() + p, n, fnan);
 }
+
+// The same for one pixel, status outside.
+void reset(RefractionMap& map, std::size_t p) { reset_span(map, p, 1); }
 
 // Writes every per-pixel field of the map from one sample.
 void store(RefractionMap& map, const TraceScene& scene, std::size_t p, const SkinSample& s) {
