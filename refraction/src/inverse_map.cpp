@@ -129,42 +129,64 @@ struct CellRef {
   std::int32_t j0, j1;  // texel rows its bounding box spans
 };
 
-}  // namespace
-
-InverseMap compute_inverse_map(const RefractionMap& fwd, const InverseMapOptions& options,
-                               const ContactSurface* contact) {
-  options.validate();
-  const auto t_start = Clock::now();
-  const int W = fwd.width, H = fwd.height;
-  const std::size_t n_pix = static_cast<std::size_t>(W) * H;
-  if (W < 0 || H < 0 || fwd.status.size() != n_pix || fwd.chart_uv.size() != n_pix ||
-      fwd.face.size() != n_pix)
-    throw std::invalid_argument("compute_inverse_map: the refraction map's arrays do not match its size");
-
-  // Usable pixels: valid with chart coordinates.
-  std::vector<std::uint8_t> ok(n_pix, 0);
-  Eigen::Vector2d lo = Vec2::Constant(INFINITY), hi = Vec2::Constant(-INFINITY);
+// The forward map's usable pixels (valid, with chart coordinates) and the
+// chart steps between neighbours, which tell continuous cells from cells
+// across a discontinuity.
+struct ForwardCells {
+  const RefractionMap& fwd;
+  int W, H;
+  std::vector<std::uint8_t> ok;
+  Vec2 lo = Vec2::Constant(INFINITY), hi = Vec2::Constant(-INFINITY);  // bounds of the usable chart_uv
   long long n_valid = 0, n_uv = 0;
+  std::vector<float> lh, lv;  // chart length of each step right / down; -1 if an end is unusable
+  float ratio = 4;
+
+  Vec2 uv_at(int x, int y) const { return fwd.chart_uv[static_cast<std::size_t>(y) * W + x].cast<double>(); }
+  bool usable(int x, int y) const { return ok[static_cast<std::size_t>(y) * W + x] != 0; }
+  // A step is continuous unless it is longer than `ratio` times both of its
+  // usable neighbours along the same line (no usable neighbour: continuous).
+  bool step_ok_h(int x, int y) const {
+    const std::size_t p = static_cast<std::size_t>(y) * W + x;
+    const float l = lh[p];
+    const float ref = std::max(x > 0 ? lh[p - 1] : -1.f, x + 2 < W ? lh[p + 1] : -1.f);
+    return l >= 0 && (ref < 0 || l <= ratio * ref);
+  }
+  bool step_ok_v(int x, int y) const {
+    const std::size_t p = static_cast<std::size_t>(y) * W + x;
+    const float l = lv[p];
+    const float ref = std::max(y > 0 ? lv[p - W] : -1.f, y + 2 < H ? lv[p + W] : -1.f);
+    return l >= 0 && (ref < 0 || l <= ratio * ref);
+  }
+  Patch patch_of(int x, int y) const { return Patch(uv_at(x, y), uv_at(x + 1, y), uv_at(x, y + 1), uv_at(x + 1, y + 1)); }
+};
+
+// Stage 1: which pixels are usable, and the bounds of their chart coordinates.
+void find_usable(ForwardCells& f, const ContactSurface* contact) {
+  const RefractionMap& fwd = f.fwd;
+  const std::size_t n_pix = static_cast<std::size_t>(f.W) * f.H;
+  f.ok.assign(n_pix, 0);
   for (std::size_t p = 0; p < n_pix; ++p) {
     if (fwd.status[p] != PixelStatus::valid) continue;
-    ++n_valid;
+    ++f.n_valid;
     const Eigen::Vector2f& uv = fwd.chart_uv[p];
     if (!uv.allFinite()) continue;
     if (contact && (fwd.face[p] < 0 || static_cast<std::size_t>(fwd.face[p]) >= contact->component.size() ||
                     contact->component[fwd.face[p]] < 0))
       throw std::invalid_argument("compute_inverse_map: pixel " + std::to_string(p) + " has face " +
                                   std::to_string(fwd.face[p]) + ", not a face of the given contact surface");
-    ok[p] = 1;
-    ++n_uv;
-    lo = lo.cwiseMin(uv.cast<double>());
-    hi = hi.cwiseMax(uv.cast<double>());
+    f.ok[p] = 1;
+    ++f.n_uv;
+    f.lo = f.lo.cwiseMin(uv.cast<double>());
+    f.hi = f.hi.cwiseMax(uv.cast<double>());
   }
-  if (n_valid > 0 && n_uv == 0)
+  if (f.n_valid > 0 && f.n_uv == 0)
     throw std::invalid_argument(
         "compute_inverse_map: the refraction map has no chart coordinates (trace it with TraceScene::chart "
         "set)");
+}
 
-  // The texel grid.
+// Stage 2: the texel grid (sizes and origin; every texel invalid).
+InverseMap texel_grid(const ForwardCells& f, const InverseMapOptions& options) {
   InverseMap m;
   const double t = options.texel_mm;
   m.texel_mm = t;
@@ -173,12 +195,12 @@ InverseMap compute_inverse_map(const RefractionMap& fwd, const InverseMapOptions
     edge_lo = *options.uv_min;
     edge_hi = *options.uv_max;
   } else {
-    if (n_uv == 0)
+    if (f.n_uv == 0)
       throw InputError("", "refraction map",
                        "no pixel sees the contact surface through the part, so the inverse map is empty",
                        "check the pose (cam_from_part) and the contact selection");
-    edge_lo = (lo / t).array().floor() * t;
-    edge_hi = (hi / t).array().ceil() * t;
+    edge_lo = (f.lo / t).array().floor() * t;
+    edge_hi = (f.hi / t).array().ceil() * t;
   }
   const Eigen::Array2d cells = ((edge_hi - edge_lo) / t).array() - 1e-9;
   const double wd = std::max(1.0, std::ceil(cells.x())), hd = std::max(1.0, std::ceil(cells.y()));
@@ -195,64 +217,42 @@ InverseMap compute_inverse_map(const RefractionMap& fwd, const InverseMapOptions
   m.map_x.assign(n_tex, kInvalidPixel);
   m.map_y.assign(n_tex, kInvalidPixel);
   m.valid.assign(n_tex, 0);
-  if (W < 2 || H < 2 || n_uv == 0) {
-    m.raster_ms = ms_since(t_start);
-    return m;
-  }
+  return m;
+}
 
-  auto uv_at = [&](int x, int y) -> Vec2 {
-    return fwd.chart_uv[static_cast<std::size_t>(y) * W + x].cast<double>();
-  };
-  auto usable = [&](int x, int y) { return ok[static_cast<std::size_t>(y) * W + x] != 0; };
-
-  // Chart length of each step to the right (lh) and down (lv); -1 if an end is unusable.
-  std::vector<float> lh(n_pix, -1.f), lv(n_pix, -1.f);
+// Stage 3: chart step lengths, then every usable cell classified (continuous,
+// convex) and binned by the texel rows it spans, per image row.
+std::vector<std::vector<CellRef>> classify_cells(ForwardCells& f, InverseMap& m, const ContactSurface* contact) {
+  const int W = f.W, H = f.H;
+  const double t = m.texel_mm;
+  f.lh.assign(static_cast<std::size_t>(W) * H, -1.f);
+  f.lv.assign(static_cast<std::size_t>(W) * H, -1.f);
   tbb::parallel_for(0, H, [&](int y) {
     for (int x = 0; x < W; ++x) {
-      if (!usable(x, y)) continue;
+      if (!f.usable(x, y)) continue;
       const std::size_t p = static_cast<std::size_t>(y) * W + x;
-      if (x + 1 < W && usable(x + 1, y)) lh[p] = static_cast<float>((uv_at(x + 1, y) - uv_at(x, y)).norm());
-      if (y + 1 < H && usable(x, y + 1)) lv[p] = static_cast<float>((uv_at(x, y + 1) - uv_at(x, y)).norm());
+      if (x + 1 < W && f.usable(x + 1, y)) f.lh[p] = static_cast<float>((f.uv_at(x + 1, y) - f.uv_at(x, y)).norm());
+      if (y + 1 < H && f.usable(x, y + 1)) f.lv[p] = static_cast<float>((f.uv_at(x, y + 1) - f.uv_at(x, y)).norm());
     }
   });
-  const float ratio = static_cast<float>(options.max_step_ratio);
-  // A step is continuous unless it is longer than `ratio` times both of its
-  // usable neighbours along the same line (no usable neighbour: continuous).
-  auto step_ok_h = [&](int x, int y) {
-    const std::size_t p = static_cast<std::size_t>(y) * W + x;
-    const float l = lh[p];
-    const float ref = std::max(x > 0 ? lh[p - 1] : -1.f, x + 2 < W ? lh[p + 1] : -1.f);
-    return l >= 0 && (ref < 0 || l <= ratio * ref);
-  };
-  auto step_ok_v = [&](int x, int y) {
-    const std::size_t p = static_cast<std::size_t>(y) * W + x;
-    const float l = lv[p];
-    const float ref = std::max(y > 0 ? lv[p - W] : -1.f, y + 2 < H ? lv[p + W] : -1.f);
-    return l >= 0 && (ref < 0 || l <= ratio * ref);
-  };
-  auto patch_of = [&](int x, int y) {
-    return Patch(uv_at(x, y), uv_at(x + 1, y), uv_at(x, y + 1), uv_at(x + 1, y + 1));
-  };
-
-  // Classify cells and bin the usable ones by the texel rows they span.
   std::vector<std::vector<CellRef>> row_cells(H - 1);
   std::atomic<long long> rejected_step{0}, rejected_fold{0};
   tbb::parallel_for(0, H - 1, [&](int y) {
     long long n_step = 0, n_fold = 0;
     for (int x = 0; x + 1 < W; ++x) {
-      if (!usable(x, y) || !usable(x + 1, y) || !usable(x, y + 1) || !usable(x + 1, y + 1)) continue;
-      bool continuous = step_ok_h(x, y) && step_ok_h(x, y + 1) && step_ok_v(x, y) && step_ok_v(x + 1, y);
+      if (!f.usable(x, y) || !f.usable(x + 1, y) || !f.usable(x, y + 1) || !f.usable(x + 1, y + 1)) continue;
+      bool continuous = f.step_ok_h(x, y) && f.step_ok_h(x, y + 1) && f.step_ok_v(x, y) && f.step_ok_v(x + 1, y);
       if (continuous && contact) {
         const std::size_t p = static_cast<std::size_t>(y) * W + x;
-        const int c0 = contact->component[fwd.face[p]];
-        continuous = contact->component[fwd.face[p + 1]] == c0 && contact->component[fwd.face[p + W]] == c0 &&
-                     contact->component[fwd.face[p + W + 1]] == c0;
+        const int c0 = contact->component[f.fwd.face[p]];
+        continuous = contact->component[f.fwd.face[p + 1]] == c0 && contact->component[f.fwd.face[p + W]] == c0 &&
+                     contact->component[f.fwd.face[p + W + 1]] == c0;
       }
       if (!continuous) {
         ++n_step;
         continue;
       }
-      const Patch patch = patch_of(x, y);
+      const Patch patch = f.patch_of(x, y);
       if (!patch.convex()) {
         ++n_fold;
         continue;
@@ -273,10 +273,20 @@ InverseMap compute_inverse_map(const RefractionMap& fwd, const InverseMapOptions
   });
   m.cells_rejected_step = rejected_step;
   m.cells_rejected_fold = rejected_fold;
+  return row_cells;
+}
 
-  // Counting sort into bands of texel rows, keeping image row-major order.
+// Stage 4: the cells sorted into bands of texel rows (counting sort, keeping
+// image row-major order): band b holds banded[start[b] .. start[b + 1]).
+struct Bands {
+  std::vector<std::size_t> start;
+  std::vector<CellRef> banded;
+};
+Bands band_cells(std::vector<std::vector<CellRef>>&& row_cells, InverseMap& m) {
   const int n_bands = (m.height + kBandRows - 1) / kBandRows;
-  std::vector<std::size_t> start(n_bands + 1, 0);
+  Bands bands;
+  std::vector<std::size_t>& start = bands.start;
+  start.assign(n_bands + 1, 0);
   long long used = 0;
   for (const auto& row : row_cells)
     for (const CellRef& c : row) {
@@ -285,25 +295,29 @@ InverseMap compute_inverse_map(const RefractionMap& fwd, const InverseMapOptions
     }
   m.cells_used = used;
   for (int b = 0; b < n_bands; ++b) start[b + 1] += start[b];
-  std::vector<CellRef> banded(start[n_bands]);
-  {
-    std::vector<std::size_t> fill(start.begin(), start.end() - 1);
-    for (const auto& row : row_cells)
-      for (const CellRef& c : row)
-        for (int b = c.j0 / kBandRows; b <= c.j1 / kBandRows; ++b) banded[fill[b]++] = c;
-    row_cells = {};
-  }
+  bands.banded.resize(start[n_bands]);
+  std::vector<std::size_t> fill(start.begin(), start.end() - 1);
+  for (const auto& row : row_cells)
+    for (const CellRef& c : row)
+      for (int b = c.j0 / kBandRows; b <= c.j1 / kBandRows; ++b) bands.banded[fill[b]++] = c;
+  row_cells = {};
+  return bands;
+}
 
-  // Rasterise: each band writes only its own texel rows.
+// Stage 5: rasterise; each band writes only its own texel rows.
+void rasterise(const ForwardCells& f, const Bands& bands, InverseMap& m) {
+  const int W = f.W;
+  const double t = m.texel_mm;
+  const int n_bands = static_cast<int>(bands.start.size()) - 1;
   std::atomic<long long> overlap{0};
   tbb::parallel_for(0, n_bands, [&](int b) {
     const int band_lo = b * kBandRows, band_hi = std::min(m.height - 1, band_lo + kBandRows - 1);
     std::vector<std::uint8_t> folded(static_cast<std::size_t>(band_hi - band_lo + 1) * m.width, 0);
     long long n_overlap = 0;
-    for (std::size_t k = start[b]; k < start[b + 1]; ++k) {
-      const CellRef& c = banded[k];
+    for (std::size_t k = bands.start[b]; k < bands.start[b + 1]; ++k) {
+      const CellRef& c = bands.banded[k];
       const int x = static_cast<int>(c.cell % W), y = static_cast<int>(c.cell / W);
-      const Patch patch = patch_of(x, y);
+      const Patch patch = f.patch_of(x, y);
       double umin = INFINITY, umax = -INFINITY;
       for (const Vec2& q : patch.corner) {
         umin = std::min(umin, q.x());
@@ -319,9 +333,9 @@ InverseMap compute_inverse_map(const RefractionMap& fwd, const InverseMapOptions
           const std::size_t q = m.index(i, j);
           const float px = static_cast<float>(x + s), py = static_cast<float>(y + tt);
           if (m.valid[q]) {
-            std::uint8_t& f = folded[static_cast<std::size_t>(j - band_lo) * m.width + i];
-            if (!f && std::hypot(px - m.map_x[q], py - m.map_y[q]) > 1) {
-              f = 1;
+            std::uint8_t& fo = folded[static_cast<std::size_t>(j - band_lo) * m.width + i];
+            if (!fo && std::hypot(px - m.map_x[q], py - m.map_y[q]) > 1) {
+              fo = 1;
               ++n_overlap;
             }
             continue;
@@ -335,11 +349,13 @@ InverseMap compute_inverse_map(const RefractionMap& fwd, const InverseMapOptions
   });
   m.texels_overlap = overlap;
   m.error.texels_valid = std::count(m.valid.begin(), m.valid.end(), std::uint8_t(1));
-  m.raster_ms = ms_since(t_start);
-  if (!options.compute_errors) return m;
+}
 
-  // Round trips.
-  const auto t_err = Clock::now();
+// Stage 6: the round trips texel -> pixel -> chart and pixel -> chart -> pixel.
+void round_trip_errors(const ForwardCells& f, InverseMap& m) {
+  const int W = f.W, H = f.H;
+  auto usable = [&](int x, int y) { return f.usable(x, y); };
+  auto uv_at = [&](int x, int y) { return f.uv_at(x, y); };
   std::vector<double> row_uv_err(m.height, 0);
   tbb::parallel_for(0, m.height, [&](int j) {
     double worst = 0;
@@ -355,13 +371,13 @@ InverseMap compute_inverse_map(const RefractionMap& fwd, const InverseMapOptions
   });
   m.error.max_uv_um = 1e3 * *std::max_element(row_uv_err.begin(), row_uv_err.end());
 
-  std::vector<float> px_err(n_pix, -1.f);
+  std::vector<float> px_err(static_cast<std::size_t>(W) * H, -1.f);
   auto texel_ok = [&](int i, int j) { return m.valid[m.index(i, j)] != 0; };
   auto texel_px = [&](int i, int j) { return Vec2(m.map_x[m.index(i, j)], m.map_y[m.index(i, j)]); };
   tbb::parallel_for(0, H, [&](int y) {
     for (int x = 0; x < W; ++x) {
-      if (!usable(x, y)) continue;
-      const Vec2 g = (uv_at(x, y) - m.uv_origin) / t;
+      if (!f.usable(x, y)) continue;
+      const Vec2 g = (f.uv_at(x, y) - m.uv_origin) / m.texel_mm;
       Vec2 p;
       if (bilinear(m.width, m.height, g.x(), g.y(), texel_ok, texel_px, p))
         px_err[static_cast<std::size_t>(y) * W + x] = static_cast<float>((p - Vec2(x, y)).norm());
@@ -374,6 +390,32 @@ InverseMap compute_inverse_map(const RefractionMap& fwd, const InverseMapOptions
     m.error.p99_px = quantile(px_err, 0.99);
     m.error.median_px = quantile(px_err, 0.5);
   }
+}
+
+}  // namespace
+
+InverseMap compute_inverse_map(const RefractionMap& fwd, const InverseMapOptions& options,
+                               const ContactSurface* contact) {
+  options.validate();
+  const auto t_start = Clock::now();
+  const int W = fwd.width, H = fwd.height;
+  const std::size_t n_pix = static_cast<std::size_t>(W) * H;
+  if (W < 0 || H < 0 || fwd.status.size() != n_pix || fwd.chart_uv.size() != n_pix ||
+      fwd.face.size() != n_pix)
+    throw std::invalid_argument("compute_inverse_map: the refraction map's arrays do not match its size");
+  ForwardCells f{fwd, W, H};
+  f.ratio = static_cast<float>(options.max_step_ratio);
+  find_usable(f, contact);
+  InverseMap m = texel_grid(f, options);
+  if (W < 2 || H < 2 || f.n_uv == 0) {
+    m.raster_ms = ms_since(t_start);
+    return m;
+  }
+  rasterise(f, band_cells(classify_cells(f, m, contact), m), m);
+  m.raster_ms = ms_since(t_start);
+  if (!options.compute_errors) return m;
+  const auto t_err = Clock::now();
+  round_trip_errors(f, m);
   m.error_ms = ms_since(t_err);
   return m;
 }

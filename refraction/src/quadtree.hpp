@@ -1,0 +1,134 @@
+#pragma once
+// Stage 4, grid and adaptive modes: a quadtree over pixel cells with up to
+// nine nodes each (corners, edge midpoints, centre), all traced exactly; the
+// interior is filled by tensor-product quadratic (Lagrange) interpolation of
+// the nodes. Two check pixels (1/4 and 3/4 of the diagonal) are traced too;
+// adaptive splits the cell into its quadrants (whose corners are nodes
+// already) unless the interpolation is within tolerance there. Each level's
+// nodes and checks are traced in one batch. Small cells that a validity
+// boundary crosses go to the boundary resolver instead of being split.
+//
+//   quadtree.cpp           the levels: trace nodes and checks, decide, split, fill
+//   quadtree_fill.cpp      the interpolant and the fills of accepted cells
+//   boundary_resolver.cpp  the small cells a validity boundary crosses
+#include "chart_locator.hpp"
+#include "map_stages.hpp"
+
+#include <array>
+#include <optional>
+#include <vector>
+
+namespace clearfit::refraction_detail {
+
+struct Cell {
+  int x0, y0, x1, y1;  // corner pixels (inclusive)
+};
+// Cells up to this size (pixels) that a validity boundary crosses go to the
+// boundary resolver instead of being split further.
+constexpr int kResolveCell = 8;
+
+// What `traced` holds per pixel while the quadtree runs.
+enum TraceState : char {
+  kUntouched = 0,
+  kExact = 1,     // traced
+  kFilled = 2,    // interpolated, or reset as uniformly invalid
+  kRelocate = 3,  // the chart location of its interpolation failed: to be traced
+  kPending = 4,   // in a boundary cell, status guessed from the nearest node
+  kQueued = 5,    // listed for the current trace
+};
+
+class Quadtree {
+ public:
+  explicit Quadtree(const MapRun& run);
+  /// Resets the pixels outside the bound and fills those inside.
+  void run();
+
+ private:
+  // ---- the interpolant (quadtree_fill.cpp)
+  struct Interp {
+    Vec3 point;
+    int face;
+    std::array<double, 3> bary;
+    Vec2 uv;
+  };
+  struct Nodes {
+    int n = 0;
+    std::uint32_t pixel[9];
+    int ax[3], ay[3], nx = 0, ny = 0;
+  };
+  // A cell prepared for the fill without a chart, written row by row across
+  // all cells of a level (long runs along the rows write at about twice the
+  // memory bandwidth of cell by cell). Gives interpolate()'s result up to
+  // rounding.
+  struct DirectFill {
+    // Per node's face: corner 0 and the two vectors whose dot products
+    // with (point - corner 0) give the barycentric weights of corners 1, 2.
+    struct Frame {
+      Vec3 a, g1, g2;
+      int face;
+    };
+    using Val = Eigen::Matrix<double, 6, 1>;  // skin point, incidence, contact, transmittance
+    Nodes q;
+    int x0, y0, xe, ye;
+    std::array<Frame, 9> frame;
+    std::array<Val, 9> node_val;
+    double wx0[3][3];      // x weights at x0, x0 + 1, x0 + 2
+    int ix_from[3], ix_n;  // heaviest node column: column ix_of[k] from x0 + ix_from[k] on
+    int ix_of[3];
+  };
+  std::uint32_t idx(int x, int y) const { return static_cast<std::uint32_t>(map_.index(x, y)); }
+  /// Last column and row a cell fills (its right and bottom edges belong to
+  /// the next cell unless they are the bound's).
+  int x_end(const Cell& c) const { return c.x1 == box_.x1 ? c.x1 : c.x1 - 1; }
+  int y_end(const Cell& c) const { return c.y1 == box_.y1 ? c.y1 : c.y1 - 1; }
+  Nodes nodes_of(const Cell& c) const;
+  static std::array<double, 9> weights(const Nodes& q, int x, int y);
+  /// With a chart, chart coordinates are interpolated (smooth: no surface
+  /// sag) and put back on the mesh by point location, so the point lies on
+  /// the surface. Without one: the skin points themselves, with the face of
+  /// the heaviest node. nullopt: the location fell outside the chart.
+  std::optional<Interp> interpolate(const Nodes& q, const std::array<double, 9>& w) const;
+  void write_interp(std::uint32_t p, const Nodes& q, const std::array<double, 9>& w, const Interp& r);
+  long long fill_located(const Cell& c, const Nodes& q);
+  void prepare_direct(const Cell& c, DirectFill& f) const;
+  long long fill_direct_row(const DirectFill& f, int y);
+  void fill_invalid_row(int x0, int xe, int y, PixelStatus why);
+
+  // ---- the levels (quadtree.cpp)
+  /// Exact trace of the listed pixels that are not traced yet.
+  void trace_pixels(const std::vector<std::uint32_t>& pixels_in);
+  static bool done(const Cell& c) { return c.x1 - c.x0 <= 2 && c.y1 - c.y0 <= 2; }  // every pixel is a node
+  static std::pair<int, int> check_xy(const Cell& c, int k);
+  bool corners_differ(const Cell& c) const;
+  enum Decision : char { skip = 0, accept_valid = 1, accept_invalid = 2, split = 3, to_resolver = 4 };
+  void decide(const std::vector<Cell>& cells, std::vector<char>& decision, std::vector<double>& cell_err) const;
+  void fill_accepted(const std::vector<Cell>& cells, const std::vector<char>& decision);
+  void fill_accepted_by_rows(const std::vector<Cell>& cells, const std::vector<char>& decision,
+                             std::vector<std::size_t>& accepted);
+
+  // ---- the boundary resolver (boundary_resolver.cpp)
+  void resolve_boundary(const std::vector<Cell>& cells);
+  std::vector<std::vector<std::uint32_t>> guess_boundary_cells(const std::vector<Cell>& cells);
+  bool borders_other(std::uint32_t p) const;
+  void trace_boundary(std::vector<std::uint32_t>& pending);
+  /// The pending valid pixels of one cell from a least-squares quadratic;
+  /// returns those it could not fill.
+  std::vector<std::uint32_t> fit_behind(const Cell& c, const std::vector<std::uint32_t>& pixels, double& fit_err,
+                                        long long& fitted);
+  std::uint32_t nearest_known(int x, int y, const std::vector<std::uint32_t>& known) const;
+
+  const MapRun& run_;
+  const Mesh& mesh_;
+  RefractionMap& map_;
+  MapStats& st_;
+  const PixelBox box_;
+  const int W_;
+  const bool adaptive_;
+  const double tol_mm_;
+  const std::vector<int>& component_;
+  std::vector<char> traced_;
+  std::optional<ChartLocator> locator_;
+  double worst_ = 0;
+};
+
+}  // namespace clearfit::refraction_detail
