@@ -5,6 +5,7 @@
 #include "options.hpp"
 #include "part_setup.hpp"
 #include "scene.hpp"
+#include "simulate_photometric.hpp"
 
 #include <clearfit/camera/camera_model.hpp>
 #include <clearfit/camera/pose.hpp>
@@ -33,6 +34,7 @@ struct SimulationSpec {
   sim::PressureFieldSpec field;
   std::optional<std::string> pressure_map;
   std::optional<sim::PressOptions> presses;
+  sim::PhotometricEffects photometric;  ///< glare, exposure steps and drifts, flicker drift
 };
 
 class SimulationParser {
@@ -41,7 +43,8 @@ class SimulationParser {
 
   SimulationSpec parse(const YAML::Node& s) {
     SimulationSpec o;
-    r_.only_keys(s, "simulation", {"seed", "out", "format", "scale", "timeline", "skin", "camera", "flicker", "motion", "pressure", "presses"});
+    r_.only_keys(s, "simulation", {"seed", "out", "format", "scale", "timeline", "skin", "camera", "flicker", "motion", "pressure", "presses",
+                                   "glare", "exposure"});
     if (auto v = r_.get<long long>(s, "seed", "simulation.seed", "a whole number")) {
       if (*v < 0) r_.fail(s["seed"], "simulation.seed", "expected a number >= 0");
       o.seed = static_cast<std::uint64_t>(*v);
@@ -83,7 +86,7 @@ class SimulationParser {
       num(c, "texture_mm", p + ".texture_mm", cam.texture_mm, 1e-3, 1);
     }
     if (const YAML::Node f = s["flicker"]) {
-      r_.only_keys(f, "simulation.flicker", {"amplitude", "hz"});
+      r_.only_keys(f, "simulation.flicker", {"amplitude", "hz", "drift_hz_per_s"});
       num(f, "amplitude", "simulation.flicker.amplitude", o.camera.flicker_amplitude, 0, 0.99);
       num(f, "hz", "simulation.flicker.hz", o.camera.flicker_hz, 1, 10000);
     }
@@ -93,6 +96,7 @@ class SimulationParser {
     }
     if (const YAML::Node p = s["pressure"]) parse_pressure(p, o);
     if (const YAML::Node p = s["presses"]) parse_presses(p, o);
+    o.photometric = parse_photometric(r_, s);
     return o;
   }
 
@@ -289,6 +293,7 @@ Run add_simulate(CLI::App& app) {
       spec.camera.validate();
       spec.timeline.validate();
       if (spec.presses) spec.presses->validate();
+      spec.photometric.validate();
     } catch (const std::invalid_argument& e) {
       throw InputError(o->scene, "simulation", e.what());
     }
@@ -342,6 +347,8 @@ Run add_simulate(CLI::App& app) {
       say("skin model and per-pixel terms ready (" + std::to_string(seconds_since(t0)).substr(0, 4) + " s)");
       std::filesystem::create_directories(out);
       int last_decile = -1;
+      std::optional<sim::PhotometricSchedule> photometry;
+      if (spec.photometric.any()) photometry.emplace(spec.photometric, spec.camera, spec.timeline, cv::Size(map.width, map.height));
       const sim::CaptureSummary cap = sim::render_captures(
           renderer, spec.skin, spec.timeline, spec.camera, spec.format, out, spec.seed, [&](int done, int total) {
             const int decile = 10 * done / total;
@@ -349,7 +356,7 @@ Run add_simulate(CLI::App& app) {
               last_decile = decile;
               say("frame " + std::to_string(done) + "/" + std::to_string(total));
             }
-          });
+          }, photometry ? &*photometry : nullptr);
       std::vector<std::pair<std::string, std::string>> inputs{{"scene", sc.path.string()}, {"mesh", o->part.mesh}, {"camera", o->part.camera}};
       if (!o->part.pose.empty()) inputs.emplace_back("pose", o->part.pose);
       if (spec.pressure_map) inputs.emplace_back("pressure_map", *spec.pressure_map);
@@ -362,6 +369,8 @@ Run add_simulate(CLI::App& app) {
                        {map.width, map.height}, spec.seed, inputs);
       for (const auto& f : cap.files) written.push_back(f);
       for (const char* f : {"truth.json", "truth_pressure.npy", "truth_vertex_pressure.npy"}) written.emplace_back(f);
+      if (photometry)
+        for (const auto& f : photometry->write_truth(out)) written.push_back(f);
       const int frames = cap.baseline_frames + cap.press_frames;
       std::ostringstream s;
       s.precision(3);

@@ -2,6 +2,7 @@
 // the blanching, pulse, flicker, noise and sRGB encoding (see simulate.hpp).
 #include <clearfit/error.hpp>
 #include <clearfit/fit/simulate.hpp>
+#include <clearfit/fit/simulate_photometric.hpp>
 #include <clearfit/fit/srgb.hpp>
 
 #include <opencv2/imgcodecs.hpp>
@@ -12,6 +13,7 @@
 #include <cmath>
 #include <future>
 #include <numbers>
+#include <optional>
 #include <random>
 #include <sstream>
 
@@ -208,15 +210,18 @@ double CaptureRenderer::linear_green(int x, int y, double t_s, double h) const {
   return p.gain * skin_.tone.reflectance[1] * std::exp(-k * skin_.pulse_amplitude * g) * poly + p.additive;
 }
 
-cv::Mat CaptureRenderer::render(double t_s, double h, const Vec2& shift, std::uint64_t frame) const {
+cv::Mat CaptureRenderer::render(double t_s, double h, const Vec2& shift, std::uint64_t frame, const FrameLight* light) const {
   cv::Mat out(height_, width_, CV_8UC3);
   const double g = pulse_waveform(t_s, skin_.pulse_hz);
   const double s = h * (1 + skin_.pulse_amplitude * g);
   const double flick = 1 + cam_.flicker_amplitude * std::sin(kTwoPi * cam_.flicker_hz * t_s);
-  float e[3], c1[3], c2[3], c3[3];
+  // The camera's gain per channel: the flicker, or the photometric schedule's (simulate_photometric.hpp).
+  float gain[3], e[3], c1[3], c2[3], c3[3];
+  for (int c = 0; c < 3; ++c) gain[c] = static_cast<float>(light ? light->gain[c] : flick);  // c: R, G, B
+  const cv::Mat* glare = light && light->glare && !light->glare->empty() ? light->glare : nullptr;
   for (int c = 0; c < 3; ++c) {
     const double k = skin_.absorption[c], ks = k * s;
-    e[c] = static_cast<float>(flick * skin_.tone.reflectance[c] * std::exp(-k * skin_.pulse_amplitude * g));
+    e[c] = static_cast<float>(gain[c] * skin_.tone.reflectance[c] * std::exp(-k * skin_.pulse_amplitude * g));
     c1[c] = static_cast<float>(ks), c2[c] = static_cast<float>(ks * ks / 2), c3[c] = static_cast<float>(ks * ks * ks / 6);
   }
   const bool moved = shift.squaredNorm() > 0;
@@ -238,11 +243,14 @@ cv::Mat CaptureRenderer::render(double t_s, double h, const Vec2& shift, std::ui
       const float* noise[3];
       for (int c = 0; c < 3; ++c)
         noise[c] = noise_pool_.data() + splitmix(fseed + 3 * static_cast<std::uint64_t>(y) + c) % (noise_pool_.size() - width_);
+      const float* glare_row = glare ? glare->ptr<float>(y) : nullptr;
       for (int x = 0; x < width_; ++x) {
         const Pixel& p = row[x];
+        const float w = glare_row ? glare_row[x] : 0.f;  // glare adds light and its shot noise
         for (int c = 0; c < 3; ++c) {
           const float poly = p.q[0] + c1[c] * p.q[1] + c2[c] * p.q[2] + c3[c] * p.q[3];
-          const float lin = flick * p.additive + p.gain * e[c] * poly + p.sigma[c] * noise[c][x];
+          const float sigma = w > 0 ? std::sqrt(p.sigma[c] * p.sigma[c] + gain[c] * w / static_cast<float>(cam_.full_well_e)) : p.sigma[c];
+          const float lin = gain[c] * (p.additive + w) + p.gain * e[c] * poly + sigma * noise[c][x];
           const int idx = std::clamp(static_cast<int>(lin * (kLutSize - 1) + 0.5f), 0, kLutSize - 1);
           o[3 * x + 2 - c] = srgb_lut_[idx];  // BGR
         }
@@ -335,7 +343,8 @@ void CaptureWriter::finish() {
 
 CaptureSummary render_captures(const CaptureRenderer& r, const SkinParameters& skin, const Timeline& tl,
                                const CameraSettings& cam, VideoFormat format, const std::filesystem::path& dir,
-                               std::uint64_t seed, const std::function<void(int, int)>& progress) {
+                               std::uint64_t seed, const std::function<void(int, int)>& progress,
+                               const PhotometricSchedule* photometry) {
   tl.validate();
   CaptureSummary sum;
   sum.baseline_frames = tl.baseline_frames();
@@ -362,7 +371,8 @@ CaptureSummary render_captures(const CaptureRenderer& r, const SkinParameters& s
     const double t = k / tl.fps, t_press = sum.baseline_frames / tl.fps;
     const double h = k < sum.baseline_frames ? 0.0 : 1 - std::exp(-(t - t_press + 1 / tl.fps) / skin.tau_on_s);
     auto t0 = std::chrono::steady_clock::now();
-    cv::Mat frame = r.render(t, h, sum.shift_px[k], static_cast<std::uint64_t>(k));
+    const std::optional<FrameLight> light = photometry ? std::optional(photometry->frame(k)) : std::nullopt;
+    cv::Mat frame = r.render(t, h, sum.shift_px[k], static_cast<std::uint64_t>(k), light ? &*light : nullptr);
     sum.render_ms += ms_since(t0);
     t0 = std::chrono::steady_clock::now();
     if (pending.valid()) pending.get();

@@ -36,6 +36,9 @@
 
 namespace clearfit::sim {
 
+struct FrameLight;           // simulate_photometric.hpp
+class PhotometricSchedule;   // simulate_photometric.hpp
+
 /// One pressure hotspot. Its centre is given on the chart (mm) or as a point
 /// in the part frame (mm), which is moved to the nearest point of the contact
 /// surface and taken to the chart there.
@@ -137,8 +140,10 @@ class CaptureRenderer {
 
   /// One 8-bit BGR frame (CV_8UC3) at time t_s with press lag h in [0, 1]
   /// (B = h·B_ss), image shift (px, the skin moves by +shift in the image) and
-  /// frame number (seeds the noise).
-  cv::Mat render(double t_s, double press_lag, const Vec2& shift_px, std::uint64_t frame) const;
+  /// frame number (seeds the noise). `light` (optional): the camera's gains and
+  /// the glare of this frame, replacing the flicker (simulate_photometric.hpp).
+  cv::Mat render(double t_s, double press_lag, const Vec2& shift_px, std::uint64_t frame,
+                 const FrameLight* light = nullptr) const;
   /// The noiseless linear green of a pixel (for tests), no shift, no flicker.
   double linear_green(int x, int y, double t_s, double press_lag) const;
   int width() const { return width_; }
@@ -214,10 +219,12 @@ struct CaptureSummary {
 };
 
 /// Renders the time line into `out_dir`: baseline + worn (or capture) videos.
-/// `progress(done, total)` is called after each frame (may be empty).
+/// `progress(done, total)` is called after each frame (may be empty); `photometry` (optional)
+/// gives each frame's gains and glare (simulate_photometric.hpp).
 CaptureSummary render_captures(const CaptureRenderer& renderer, const SkinParameters& skin, const Timeline& timeline,
                                const CameraSettings& camera, VideoFormat format, const std::filesystem::path& out_dir,
-                               std::uint64_t seed, const std::function<void(int, int)>& progress = {});
+                               std::uint64_t seed, const std::function<void(int, int)>& progress = {},
+                               const PhotometricSchedule* photometry = nullptr);
 
 /// Calibration presses through the forward model (no images): a flat
 /// cylindrical indenter of each diameter at `levels` mean pressures evenly

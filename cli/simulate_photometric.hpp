@@ -1,0 +1,13 @@
+#pragma once
+// simulation.glare, simulation.exposure and simulation.flicker.drift_hz_per_s
+// of the scene file (see simulate_photometric.cpp for the format).
+#include "scene.hpp"
+
+#include <clearfit/fit/simulate_photometric.hpp>
+
+namespace clearfit::cli {
+
+/// The photometric effects of a `simulation:` section (none when it names none).
+sim::PhotometricEffects parse_photometric(const SceneReader& reader, const YAML::Node& simulation);
+
+}  // namespace clearfit::cli
