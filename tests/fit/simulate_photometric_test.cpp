@@ -14,30 +14,13 @@
 #include <numbers>
 #include <unistd.h>
 
-#include "../support/trace_part.hpp"
+#include "../support/slab_view.hpp"
 
 namespace clearfit::sim {
 namespace {
 namespace fs = std::filesystem;
 
-struct Slab {
-  test::TracePart part{shapes::slab(24, 18, 3, 4)};
-  Chart chart;
-  CameraModel camera;
-  RefractionMap map;
-  Slab() {
-    chart = compute_chart(part.mesh, part.contact);
-    camera.lensmodel = "LENSMODEL_PINHOLE";
-    camera.intrinsics = {700, 700, 159.5, 119.5};
-    camera.width = 320, camera.height = 240;
-    Rigid3 cam_from_part;
-    cam_from_part.rotation = Eigen::Vector3d(1, -1, -1).asDiagonal();
-    cam_from_part.translation = Vec3(0, 0, 60);
-    TraceScene sc = part.scene();
-    sc.chart = &chart;
-    map = compute_refraction_map(sc, camera, cam_from_part, MapOptions{});
-  }
-};
+using Slab = test::SlabView;
 
 // Mean linear value of channel c (0 B, 1 G, 2 R) over a (2r+1)² block.
 double mean_linear(const cv::Mat& bgr, int c, int cx, int cy, int r) {

@@ -17,32 +17,15 @@
 #include <numbers>
 #include <unistd.h>
 
-#include "../support/trace_part.hpp"
+#include "../support/slab_view.hpp"
 
 namespace clearfit::sim {
 namespace {
 namespace fs = std::filesystem;
 
-// A 24 × 18 × 3 mm slab seen from 60 mm by a 320 × 240 pinhole camera (about 11.7 px/mm).
-struct Bench {
-  test::TracePart part{shapes::slab(24, 18, 3, 4)};
-  Chart chart;
-  CameraModel camera;
-  Rigid3 cam_from_part;
-  RefractionMap map;
-  explicit Bench(double medium_ior = 1.0) {
-    chart = compute_chart(part.mesh, part.contact);
-    camera.lensmodel = "LENSMODEL_PINHOLE";
-    camera.intrinsics = {700, 700, 159.5, 119.5};
-    camera.width = 320, camera.height = 240;
-    cam_from_part.rotation = Eigen::Vector3d(1, -1, -1).asDiagonal();
-    cam_from_part.translation = Vec3(0, 0, 60);
-    MapOptions o;
-    o.indices.n_medium = medium_ior;
-    TraceScene sc = part.scene();
-    sc.chart = &chart;
-    map = compute_refraction_map(sc, camera, cam_from_part, o);
-  }
+// The slab scene (tests/support/slab_view.hpp) and the pixel that sees a chart point.
+struct Bench : test::SlabView {
+  explicit Bench(double medium_ior = 1.0) : SlabView(medium_ior) {}
   // Pixel that sees chart uv (nearest valid pixel).
   std::pair<int, int> pixel_at(const Vec2& uv) const {
     double best = 1e9;
