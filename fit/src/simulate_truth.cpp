@@ -86,7 +86,7 @@ SurfacePoint nearest_contact_point(const Mesh& mesh, const ContactSurface& conta
     if (d < best.distance_mm) {
       const Vec2 uv = w[0] * chart.uv[v[0]] + w[1] * chart.uv[v[1]] + w[2] * chart.uv[v[2]];
       if (!uv.allFinite()) continue;
-      best = {p, uv, d};
+      best = {p, uv, d, f};
     }
   }
   return best;
@@ -119,7 +119,9 @@ PressureTruth make_pressure_truth(const Mesh& mesh, const ContactSurface& contac
   const ChartRaster raster = rasterize_chart(mesh, chart, g);
   std::vector<char> inside(g.size(), 0);
   for (std::size_t k = 0; k < g.size(); ++k) inside[k] = raster.face[k] >= 0;
+  std::vector<std::optional<SurfaceLoad>> loads;  // part-frame sources, on the 3D surface
   for (const PressureSource& s : spec.sources) {
+    loads.emplace_back();
     if (s.center_uv_mm) {
       t.source_uv_mm.push_back(*s.center_uv_mm);
       t.source_part_mm.push_back(part_point_at_uv(mesh, chart, *s.center_uv_mm));
@@ -132,6 +134,7 @@ PressureTruth make_pressure_truth(const Mesh& mesh, const ContactSurface& contac
       }
       t.source_uv_mm.push_back(sp.uv);
       t.source_part_mm.push_back(sp.point);
+      loads.back() = SurfaceLoad::at(s, sp, mesh.face_normal(sp.face));
     } else {
       throw std::invalid_argument("make_pressure_truth: source '" + s.name + "' has no centre");
     }
@@ -152,8 +155,12 @@ PressureTruth make_pressure_truth(const Mesh& mesh, const ContactSurface& contac
     for (int i = 0; i < g.width; ++i) {
       if (!inside[g.index(i, j)]) continue;
       const Vec2 uv = g.uv(i, j);
+      const std::size_t texel = g.index(i, j);
+      const Vec3 face_normal = mesh.face_normal(raster.face[texel]);
       double p = 0;
-      for (std::size_t k = 0; k < spec.sources.size(); ++k) p += spec.sources[k].pressure_kpa((uv - t.source_uv_mm[k]).norm());
+      for (std::size_t k = 0; k < spec.sources.size(); ++k)
+        p += loads[k] ? loads[k]->pressure_kpa(raster.point[texel], face_normal)
+                      : spec.sources[k].pressure_kpa((uv - t.source_uv_mm[k]).norm());
       if (spec.user_map) {
         const float u = spec.user_map->value[g.index(i, j)];
         if (std::isfinite(u)) p += u;
@@ -172,18 +179,18 @@ PressureTruth make_pressure_truth(const Mesh& mesh, const ContactSurface& contac
   const int n = cv::connectedComponents(mask, labels, 8, CV_32S);
   std::vector<Hotspot> hs(std::max(0, n - 1));
   std::vector<double> wsum(hs.size(), 0);
-  const double area = g.texel_mm * g.texel_mm;
   for (int j = 0; j < g.height; ++j)
     for (int i = 0; i < g.width; ++i) {
       const int l = labels.at<int>(j, i);
       if (l <= 0) continue;
+      const double area = raster.area_mm2[g.index(i, j)];  // skin area, not chart area
       Hotspot& h = hs[l - 1];
       const double p = t.pressure.value[g.index(i, j)];
       h.peak_kpa = std::max(h.peak_kpa, p);
       h.area_above_4_3_mm2 += area;
       if (p >= 5.5) h.area_above_5_5_mm2 += area;
-      h.centroid_uv_mm += p * g.uv(i, j);
-      wsum[l - 1] += p;
+      h.centroid_uv_mm += p * area * g.uv(i, j);
+      wsum[l - 1] += p * area;
     }
   for (std::size_t k = 0; k < hs.size(); ++k) {
     hs[k].centroid_uv_mm /= wsum[k];

@@ -89,16 +89,36 @@ PressureTruth make_pressure_truth(const Mesh& mesh, const ContactSurface& contac
                                   const PressureFieldSpec& spec);
 
 /// Nearest point of the contact surface to `point_in_part` (mm): the point,
-/// its chart uv and its distance. Brute force over the contact faces.
+/// its chart uv, its distance and the contact face it lies on. Brute force
+/// over the contact faces.
 struct SurfacePoint {
   Vec3 point = Vec3::Zero();
   Vec2 uv = Vec2::Zero();
   double distance_mm = 0;
+  int face = -1;
 };
 SurfacePoint nearest_contact_point(const Mesh& mesh, const ContactSurface& contact, const Chart& chart,
                                    const Vec3& point_in_part);
 /// The part-frame point at chart uv (the contact face containing it), if any.
 std::optional<Vec3> part_point_at_uv(const Mesh& mesh, const Chart& chart, const Vec2& uv);
+
+/// A source given in the part frame, placed on the 3D contact surface
+/// (docs/simulator.md, "Sources on the part"): it presses along `normal`, the
+/// outward normal of the contact face at its centre point. At a surface point
+/// with face normal n it gives
+///  - 0 on faces turned more than 60° from `normal` (a bump's wall),
+///  - gaussian: the closed form at the 3D distance from the centre,
+///  - punch, hertz (rigid indenters): the closed form at the distance from
+///    the axis, on surface points within 10 % of the contact radius of the
+///    indenter's plane; surfaces farther back (the plate around a bump) are
+///    not reached: outside a flat punch the skin stays below its plane
+///    (Sneddon's displacement (2d/π)·asin(a/r) < d).
+struct SurfaceLoad {
+  const PressureSource* source = nullptr;
+  Vec3 centre = Vec3::Zero(), normal = Vec3::UnitZ();
+  static SurfaceLoad at(const PressureSource& source, const SurfacePoint& centre, const Vec3& normal);
+  double pressure_kpa(const Vec3& point, const Vec3& face_normal) const;
+};
 
 struct CameraSettings {
   double exposure = 1.0;          ///< linear gain: a white Lambertian skin at full light gives `exposure`
