@@ -103,7 +103,7 @@ SurfacePoint nearest_contact_point(const Mesh& mesh, const ContactSurface& conta
 std::optional<Vec3> part_point_at_uv(const Mesh& mesh, const Chart& chart, const Vec2& uv);
 
 /// A source given in the part frame, placed on the 3D contact surface
-/// (docs/simulator.md, "Sources on the part"): it presses along `normal`, the
+/// (docs/pressure-sources.md): it presses along `normal`, the
 /// outward normal of the contact face at its centre point. At a surface point
 /// with face normal n it gives
 ///  - 0 on faces turned more than 60° from `normal` (a bump's wall),
