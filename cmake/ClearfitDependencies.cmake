@@ -48,6 +48,9 @@ clearfit_require(OpenCV_FOUND "OpenCV (core imgproc imgcodecs videoio video cali
 find_package(OpenSSL QUIET COMPONENTS Crypto)
 clearfit_require(OpenSSL_FOUND "OpenSSL (libcrypto, for input hashes)" libssl-dev)
 
+find_package(Boost 1.74 QUIET)
+clearfit_require(Boost_FOUND "Boost (headers: Boost.Math for the study's statistics)" libboost-dev)
+
 find_package(apriltag QUIET)
 clearfit_require(apriltag_FOUND "AprilTag" libapriltag-dev)
 

@@ -38,6 +38,7 @@ function(clearfit_test MODULE NAME)
   target_compile_options(${target} PRIVATE -Wall -Wextra)
   target_compile_definitions(${target} PRIVATE
     CLEARFIT_TEST_DATA_DIR="${CMAKE_SOURCE_DIR}/tests/data"
+    CLEARFIT_TOOLS_DIR="${CMAKE_SOURCE_DIR}/tests/tools"
     CLEARFIT_SAMPLES_DIR="${CMAKE_SOURCE_DIR}/samples"
     CLEARFIT_BINARY_DIR="${CMAKE_BINARY_DIR}")
   if(ARG_PROPERTIES)
