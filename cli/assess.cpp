@@ -300,10 +300,15 @@ Run add_assess(CLI::App& app) {
       std::cout << "pressure: peak " << fmt(a.peak_kpa) << " kPa, mean " << fmt(a.mean_kpa) << " kPa over the seen skin\n";
     std::cout << a.hotspots.size() << (a.hotspots.size() == 1 ? " hotspot" : " hotspots") << "\n";
     for (const Hotspot& h : a.hotspots) {
-      std::cout << "  #" << h.id << (a.calibrated ? " >= " + fmt(h.threshold) + " kPa" : " signal >= " + fmt(h.threshold, 4)) << ": peak "
-                << fmt(h.peak, a.calibrated ? 1 : 4) << (a.calibrated ? " ± " + fmt(h.peak_sigma) + " kPa" : "") << ", area "
-                << fmt(h.area_mm2, 2) << " mm², centroid (" << fmt(h.centroid_mm.x(), 2) << ", " << fmt(h.centroid_mm.y(), 2) << ", "
-                << fmt(h.centroid_mm.z(), 2) << ") mm\n";
+      std::cout << "  #" << h.id << ": peak " << fmt(h.peak, a.calibrated ? 1 : 4) << (a.calibrated ? " ± " + fmt(h.peak_sigma) + " kPa" : "")
+                << ", area";
+      for (const HotspotLevel& l : h.levels)
+        std::cout << (&l == &h.levels.front() ? " " : ", ") << fmt(l.area_mm2, 2) << " mm² >= "
+                  << (a.calibrated ? fmt(l.threshold) + " kPa" : fmt(l.threshold, 4));
+      std::cout << ", centroid (" << fmt(h.centroid_mm.x(), 2) << ", " << fmt(h.centroid_mm.y(), 2) << ", " << fmt(h.centroid_mm.z(), 2)
+                << ") mm";
+      if (h.unseen_area_mm2 > 0) std::cout << ", " << fmt(h.unseen_area_mm2, 2) << " mm² unseen beside it";
+      std::cout << "\n";
     }
     for (const auto& w : a.warnings) std::cout << "warning: " << w << "\n";
     if (!html_note.empty()) std::cout << "warning: " << html_note << "\n";
@@ -328,8 +333,38 @@ double bare_decode_s(const fs::path& source, int* frames) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t).count();
 }
 
+/// 3D distance from the median texel of `a` to the nearest texel of `b` (mm).
+double median_nearest_mm(const std::vector<Vec3>& a, const std::vector<Vec3>& b) {
+  if (a.empty() || b.empty()) return std::numeric_limits<double>::quiet_NaN();
+  std::vector<double> d;
+  for (const Vec3& p : a) {
+    double best = INFINITY;
+    for (const Vec3& q : b) best = std::min(best, (p - q).squaredNorm());
+    d.push_back(std::sqrt(best));
+  }
+  std::nth_element(d.begin(), d.begin() + static_cast<std::ptrdiff_t>(d.size() / 2), d.end());
+  return d[d.size() / 2];
+}
+
+/// The crest of a field near `centre`: contact texels within 3 mm whose value
+/// is at least 95 % of the largest there (a punch's rim ring, a Gaussian's top).
+std::vector<Vec3> crest(const Assessment& a, const std::vector<float>& value, const Vec3& centre) {
+  double top = -INFINITY;
+  std::vector<std::size_t> near;
+  for (std::size_t k = 0; k < value.size(); ++k)
+    if (a.raster.face[k] >= 0 && std::isfinite(value[k]) && (a.raster.point[k] - centre).norm() < 3.0)
+      near.push_back(k), top = std::max(top, static_cast<double>(value[k]));
+  std::vector<Vec3> out;
+  for (std::size_t k : near)
+    if (value[k] >= 0.95 * top) out.push_back(a.raster.point[k]);
+  return out;
+}
+
 /// Accuracy of an assessment against a simulation's truth (truth.json and
-/// truth_pressure.npy written by clearfit simulate).
+/// truth_pressure.npy written by clearfit simulate). Texels the camera does not
+/// see are neither misses nor zeros: they are left out of the RMSE, the
+/// sensitivity and the false alarms, and the share of the truth's pressed area
+/// they hold is reported beside.
 nlohmann::json accuracy_against_truth(const Assessment& a, const fs::path& truth_dir, double range_kpa) {
   std::ifstream in(truth_dir / "truth.json");
   if (!in) throw InputError((truth_dir / "truth.json").string(), "", "not found", "give --truth the folder clearfit simulate wrote");
@@ -345,17 +380,21 @@ nlohmann::json accuracy_against_truth(const Assessment& a, const fs::path& truth
   if (tp.values.size() != truth.grid.size())
     throw InputError((truth_dir / "truth_pressure.npy").string(), "shape", "does not match truth.json's chart_grid");
   const ChartGrid& g = a.signal.y.grid;
-  double se = 0;
+  std::vector<float> truth_here(g.size(), std::numeric_limits<float>::quiet_NaN());
+  double se = 0, pressed_mm2 = 0, pressed_unseen_mm2 = 0;
   long long n = 0, pos = 0, tp_n = 0, neg = 0, fp = 0;
   for (int j = 0; j < g.height; ++j)
     for (int i = 0; i < g.width; ++i) {
       const auto k = g.index(i, j);
-      if (!std::isfinite(a.signal.y.value[k]) || a.raster.face[k] < 0) continue;
+      if (a.raster.face[k] < 0) continue;
       const float tv = truth.sample(g.uv(i, j));
+      truth_here[k] = tv;
       if (!std::isfinite(tv)) continue;
+      const bool seen = std::isfinite(a.signal.y.value[k]);
+      if (tv >= 5.5f) pressed_mm2 += a.raster.area_mm2[k], pressed_unseen_mm2 += seen ? 0.0 : a.raster.area_mm2[k];
       float est = a.calibrated ? a.pressure.value[k] : 0.f;
       if (a.calibrated && a.pressure_status[k] == static_cast<std::uint8_t>(PressureStatus::below_detection)) est = 0.f;
-      if (!std::isfinite(est)) continue;
+      if (!seen || !std::isfinite(est)) continue;
       se += (est - tv) * (est - tv);
       ++n;
       const bool detected = a.calibrated ? est >= 5.5f : false;
@@ -368,20 +407,22 @@ nlohmann::json accuracy_against_truth(const Assessment& a, const fs::path& truth
     const Vec3 c(th["centroid_part_mm"][0], th["centroid_part_mm"][1], th["centroid_part_mm"][2]);
     const Hotspot* best = nullptr;
     for (const Hotspot& h : a.hotspots)
-      if (h.threshold == a.thresholds.front() && h.centre_of_pressure_mm.allFinite() &&
-          (!best || (h.centre_of_pressure_mm - c).norm() < (best->centre_of_pressure_mm - c).norm()))
+      if (h.centre_of_pressure_mm.allFinite() && (!best || (h.centre_of_pressure_mm - c).norm() < (best->centre_of_pressure_mm - c).norm()))
         best = &h;
-    double area55 = 0;
+    nlohmann::json area55 = nullptr;
     if (best && a.calibrated)
-      for (const Hotspot& h : a.hotspots)
-        if (h.threshold == 5.5 && (h.centre_of_pressure_mm - best->centre_of_pressure_mm).norm() < 3.0) area55 += h.area_mm2;
+      for (const HotspotLevel& l : best->levels)
+        if (l.threshold == 5.5) area55 = l.area_mm2;
+    const double crest_mm = a.calibrated ? median_nearest_mm(crest(a, a.pressure.value, c), crest(a, truth_here, c)) : NAN;
     hotspots.push_back({{"truth_centroid_mm", {c.x(), c.y(), c.z()}},
                         {"truth_peak_kpa", th.value("peak_kpa", 0.0)},
                         {"truth_area_5_5_mm2", th.value("area_ge_5_5_kpa_mm2", 0.0)},
                         {"found", best != nullptr},
                         {"centroid_error_mm", best ? nlohmann::json((best->centre_of_pressure_mm - c).norm()) : nlohmann::json(nullptr)},
                         {"peak_kpa", best && a.calibrated ? nlohmann::json(best->peak) : nlohmann::json(nullptr)},
-                        {"area_5_5_mm2", best && a.calibrated ? nlohmann::json(area55) : nlohmann::json(nullptr)}});
+                        {"area_5_5_mm2", area55},
+                        {"unseen_beside_mm2", best ? nlohmann::json(best->unseen_area_mm2) : nlohmann::json(nullptr)},
+                        {"crest_error_mm", std::isfinite(crest_mm) ? nlohmann::json(crest_mm) : nlohmann::json(nullptr)}});
   }
   const double rmse = n ? std::sqrt(se / n) : 0;
   return {{"texels_compared", n},
@@ -389,6 +430,8 @@ nlohmann::json accuracy_against_truth(const Assessment& a, const fs::path& truth
           {"rmse_percent_of_range", a.calibrated ? nlohmann::json(100 * rmse / range_kpa) : nlohmann::json(nullptr)},
           {"sensitivity_5_5", pos && a.calibrated ? nlohmann::json(static_cast<double>(tp_n) / pos) : nlohmann::json(nullptr)},
           {"false_alarm_rate_5_5", neg && a.calibrated ? nlohmann::json(static_cast<double>(fp) / neg) : nlohmann::json(nullptr)},
+          {"truth_pressed_area_mm2", pressed_mm2},
+          {"pressed_unseen_fraction", pressed_mm2 > 0 ? pressed_unseen_mm2 / pressed_mm2 : 0.0},
           {"hotspots", hotspots}};
 }
 
@@ -452,12 +495,17 @@ Run add_bench_assess(CLI::App& app) {
       if (!acc["sensitivity_5_5"].is_null())
         std::cout << "  >= 5.5 kPa         sensitivity " << fmt(100 * acc["sensitivity_5_5"].get<double>(), 1) << " % (target >= 90 %), false alarms "
                   << fmt(100 * acc["false_alarm_rate_5_5"].get<double>(), 2) << " % of texels below 4.3 kPa\n";
+      std::cout << "  unseen             " << fmt(100 * acc["pressed_unseen_fraction"].get<double>(), 1) << " % of the truth's "
+                << fmt(acc["truth_pressed_area_mm2"].get<double>(), 2) << " mm² >= 5.5 kPa is not seen (not scored)\n";
       for (const auto& h : acc["hotspots"])
         std::cout << "  hotspot at (" << fmt(h["truth_centroid_mm"][0].get<double>(), 2) << ", " << fmt(h["truth_centroid_mm"][1].get<double>(), 2)
                   << ", " << fmt(h["truth_centroid_mm"][2].get<double>(), 2) << ") mm: "
                   << (h["found"].get<bool>() ? "centroid error " + fmt(h["centroid_error_mm"].get<double>(), 3) + " mm (target <= 0.3)" : std::string("not found"))
                   << (h["peak_kpa"].is_null() ? "" : ", peak " + fmt(h["peak_kpa"].get<double>()) + " kPa (truth " + fmt(h["truth_peak_kpa"].get<double>()) + ")")
                   << (h["area_5_5_mm2"].is_null() ? "" : ", area >= 5.5 kPa " + fmt(h["area_5_5_mm2"].get<double>(), 2) + " mm² (truth " + fmt(h["truth_area_5_5_mm2"].get<double>(), 2) + ")")
+                  << (h["crest_error_mm"].is_null() ? "" : ", crest " + fmt(h["crest_error_mm"].get<double>(), 3) + " mm from the truth's")
+                  << (h["unseen_beside_mm2"].is_null() || h["unseen_beside_mm2"].get<double>() == 0 ? ""
+                                                        : ", " + fmt(h["unseen_beside_mm2"].get<double>(), 2) + " mm² unseen beside it")
                   << "\n";
     }
     if (!json_out->empty()) write_file_atomically(*json_out, r.dump(2) + "\n");

@@ -190,13 +190,13 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
     const ChartField& search = a.pressure;
     a.thresholds = o.thresholds_kpa;
     ho.thresholds = a.thresholds;
-    a.hotspots = find_hotspots(search, &a.pressure_sigma, &saturated, a.raster, ho, &a.hotspot_labels);
+    a.hotspots = find_hotspots(search, &a.pressure_sigma, &saturated, a.raster, ho, &a.hotspot_labels, scene.mesh);
     a.vertex_pressure = sample_at_vertices(search, *scene.chart);
   } else {
     a.thresholds = o.signal_thresholds;
     if (a.thresholds.empty()) a.thresholds = {o.signal_threshold_sigmas * std::max(a.signal.noise_sigma, 1e-6)};
     ho.thresholds = a.thresholds;
-    a.hotspots = find_hotspots(a.signal.y, &a.signal.sigma_y, nullptr, a.raster, ho, &a.hotspot_labels);
+    a.hotspots = find_hotspots(a.signal.y, &a.signal.sigma_y, nullptr, a.raster, ho, &a.hotspot_labels, scene.mesh);
     a.warnings.push_back("no pressure calibration: the report shows the blanching signal and where it is significant, not kPa");
   }
   a.vertex_signal = sample_at_vertices(a.signal.y, *scene.chart);

@@ -48,98 +48,209 @@ ChartRaster rasterize_chart(const Mesh& mesh, const Chart& chart, const ChartGri
   return r;
 }
 
+Eigen::Vector3d closest_barycentric(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c) {
+  const Vec3 ab = b - a, ac = c - a, ap = p - a;
+  const double d1 = ab.dot(ap), d2 = ac.dot(ap);
+  if (d1 <= 0 && d2 <= 0) return {1, 0, 0};
+  const Vec3 bp = p - b;
+  const double d3 = ab.dot(bp), d4 = ac.dot(bp);
+  if (d3 >= 0 && d4 <= d3) return {0, 1, 0};
+  const double vc = d1 * d4 - d3 * d2;
+  if (vc <= 0 && d1 >= 0 && d3 <= 0) {
+    const double v = d1 / (d1 - d3);
+    return {1 - v, v, 0};
+  }
+  const Vec3 cp = p - c;
+  const double d5 = ab.dot(cp), d6 = ac.dot(cp);
+  if (d6 >= 0 && d5 <= d6) return {0, 0, 1};
+  const double vb = d5 * d2 - d1 * d6;
+  if (vb <= 0 && d2 >= 0 && d6 <= 0) {
+    const double w = d2 / (d2 - d6);
+    return {1 - w, 0, w};
+  }
+  const double va = d3 * d6 - d5 * d4;
+  if (va <= 0 && (d4 - d3) >= 0 && (d5 - d6) >= 0) {
+    const double w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+    return {0, 1 - w, w};
+  }
+  const double denom = 1 / (va + vb + vc);
+  const double v = vb * denom, w = vc * denom;
+  return {1 - v - w, v, w};
+}
+
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+/// Components (8-connected) of the seen texels at or above `threshold` within
+/// their σ (value + σ ≥ threshold, so the lowest level's σ band belongs to its
+/// place), joined by the unseen contact texels within `reach` texels of them.
+cv::Mat place_components(const ChartField& field, const ChartField* sigma, const ChartRaster& raster, double threshold,
+                         double reach_texels, int* count) {
+  const ChartGrid& g = field.grid;
+  cv::Mat above(g.height, g.width, CV_8U, cv::Scalar(0)), unseen(g.height, g.width, CV_8U, cv::Scalar(0));
+  for (int j = 0; j < g.height; ++j)
+    for (int i = 0; i < g.width; ++i) {
+      const float v = field.value[g.index(i, j)];
+      const float s = sigma ? sigma->value[g.index(i, j)] : 0.f;
+      above.at<std::uint8_t>(j, i) = std::isfinite(v) && v + (std::isfinite(s) ? s : 0.f) >= threshold;
+      unseen.at<std::uint8_t>(j, i) = !std::isfinite(v) && raster.face[g.index(i, j)] >= 0;
+    }
+  cv::Mat mask = above.clone();
+  if (reach_texels > 0 && cv::countNonZero(unseen) > 0 && cv::countNonZero(above) > 0) {
+    cv::Mat distance;
+    cv::distanceTransform(1 - above, distance, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+    mask |= unseen & (distance <= reach_texels);
+  }
+  cv::Mat labels;
+  *count = cv::connectedComponents(mask, labels, 8, CV_32S);
+  return labels;
+}
+
+struct LevelSums {
+  double area = 0, area_lo = 0, area_hi = 0, sum = 0, sigma_sum = 0;
+  long long texels = 0;
+};
+
+struct PlaceSums {
+  double area = 0, unseen = 0, sum_w = 0, sum_vf = 0, peak = -1e300, peak_sigma = 0;
+  Vec3 c = Vec3::Zero(), cp = Vec3::Zero();
+  Vec2 uv = Vec2::Zero();
+  std::set<int> faces;
+  long long texels = 0, flagged = 0;
+  std::vector<LevelSums> levels;
+};
+
+/// The point of the contact surface nearest to `q`: over the faces of the place
+/// and the face of the texel whose centre is nearest to q (a ring's mean lies
+/// off the ring), exactly on the triangles when the mesh is known.
+Vec3 onto_surface(const Vec3& q, const std::set<int>& faces, const ChartRaster& raster, const Mesh* mesh) {
+  if (!q.allFinite()) return q;
+  double best = INFINITY;
+  std::size_t nearest = 0;
+  for (std::size_t k = 0; k < raster.face.size(); ++k)
+    if (raster.face[k] >= 0) {
+      const double d = (raster.point[k] - q).squaredNorm();
+      if (d < best) best = d, nearest = k;
+    }
+  if (!std::isfinite(best)) return q;
+  if (!mesh) return raster.point[nearest];
+  Vec3 out = raster.point[nearest];
+  best = INFINITY;
+  auto consider = [&](int f) {
+    const auto& t = mesh->faces[f];
+    const Vec3 &a = mesh->vertices[t[0]], &b = mesh->vertices[t[1]], &c = mesh->vertices[t[2]];
+    const Eigen::Vector3d w = closest_barycentric(q, a, b, c);
+    const Vec3 p = w[0] * a + w[1] * b + w[2] * c;
+    if ((p - q).squaredNorm() < best) best = (p - q).squaredNorm(), out = p;
+  };
+  consider(raster.face[nearest]);
+  for (int f : faces) consider(f);
+  return out;
+}
+
+}  // namespace
+
 std::vector<Hotspot> find_hotspots(const ChartField& field, const ChartField* sigma, const std::vector<std::uint8_t>* flags,
-                                   const ChartRaster& raster, const HotspotOptions& options,
-                                   std::vector<std::vector<int>>* labels) {
+                                   const ChartRaster& raster, const HotspotOptions& options, std::vector<int>* labels,
+                                   const Mesh* mesh) {
   const ChartGrid& g = field.grid;
   if (raster.grid.width != g.width || raster.grid.height != g.height)
     throw std::invalid_argument("find_hotspots: the raster's grid differs from the field's");
   if (sigma && sigma->value.size() != g.size()) throw std::invalid_argument("find_hotspots: sigma has another size");
   if (flags && flags->size() != g.size()) throw std::invalid_argument("find_hotspots: flags have another size");
-  std::vector<Hotspot> all;
-  if (labels) labels->clear();
-  for (double threshold : options.thresholds) {
-    cv::Mat mask(g.height, g.width, CV_8U);
+  if (labels) labels->assign(g.size(), 0);
+  std::vector<double> thresholds = options.thresholds;
+  std::sort(thresholds.begin(), thresholds.end());
+  if (thresholds.empty()) return {};
+  int n = 0;
+  const cv::Mat lab = place_components(field, sigma, raster, thresholds.front(), options.unseen_reach_mm / g.texel_mm, &n);
+  std::vector<PlaceSums> acc(n);
+  for (auto& a : acc) a.levels.resize(thresholds.size());
+  for (int j = 0; j < g.height; ++j)
+    for (int i = 0; i < g.width; ++i) {
+      const int l = lab.at<int>(j, i);
+      if (l == 0) continue;
+      const auto k = g.index(i, j);
+      PlaceSums& a = acc[l];
+      const double v = field.value[k];
+      const double area = raster.face[k] >= 0 ? raster.area_mm2[k] : g.texel_mm * g.texel_mm;
+      if (!std::isfinite(v)) {
+        a.unseen += area;
+        continue;
+      }
+      const double s = sigma ? sigma->value[k] : kNaN;
+      for (std::size_t t = 0; t < thresholds.size(); ++t) {
+        LevelSums& L = a.levels[t];
+        if (std::isfinite(s)) L.area_lo += area * (v - s >= thresholds[t]), L.area_hi += area * (v + s >= thresholds[t]);
+        if (v < thresholds[t]) continue;
+        L.area += area, L.sum += v * area, L.sigma_sum += s * area, ++L.texels;
+      }
+      if (v < thresholds.front()) continue;  // within σ of the outline: in the lowest level's σ only
+      a.area += area;
+      a.texels += 1;
+      if (raster.face[k] >= 0) {
+        a.c += area * raster.point[k];
+        a.cp += v * area * raster.point[k];
+        a.sum_w += area;
+        a.sum_vf += v * area;
+        a.faces.insert(raster.face[k]);
+      }
+      a.uv += area * g.uv(i, j);
+      if (v > a.peak) a.peak = v, a.peak_sigma = s;
+      if (flags && (*flags)[k]) ++a.flagged;
+    }
+  std::vector<Hotspot> found;
+  for (int l = 1; l < n; ++l) {
+    const PlaceSums& a = acc[l];
+    if (a.area < options.min_area_mm2 || a.area <= 0) continue;
+    Hotspot h;
+    h.id = l;  // provisional: the component label
+    h.threshold = thresholds.front();
+    h.peak = a.peak;
+    h.peak_sigma = a.peak_sigma;
+    for (std::size_t t = 0; t < thresholds.size(); ++t) {
+      const LevelSums& L = a.levels[t];
+      HotspotLevel lv;
+      lv.threshold = thresholds[t];
+      lv.area_mm2 = L.area;
+      lv.area_sigma_mm2 = sigma ? 0.5 * (L.area_hi - L.area_lo) : 0.0;
+      lv.mean = L.area > 0 ? L.sum / L.area : kNaN;
+      // Mean of correlated texels: σ̄ / sqrt(independent samples in the region).
+      lv.mean_sigma = L.area > 0 ? (L.sigma_sum / L.area) / std::sqrt(std::max(1.0, L.area * options.samples_per_mm2)) : kNaN;
+      lv.texels = L.texels;
+      h.levels.push_back(lv);
+    }
+    h.area_mm2 = h.levels[0].area_mm2;
+    h.mean = h.levels[0].mean;
+    h.mean_sigma = h.levels[0].mean_sigma;
+    h.centroid_uv_mm = a.uv / a.area;
+    h.faces.assign(a.faces.begin(), a.faces.end());
+    if (a.sum_w > 0) {
+      h.centroid_mean_mm = a.c / a.sum_w;
+      h.centroid_mm = onto_surface(h.centroid_mean_mm, a.faces, raster, mesh);
+      h.centre_of_pressure_mm = onto_surface(std::abs(a.sum_vf) > 0 ? Vec3(a.cp / a.sum_vf) : h.centroid_mean_mm, a.faces, raster, mesh);
+    } else {
+      h.centroid_mm = h.centroid_mean_mm = h.centre_of_pressure_mm = Vec3::Constant(kNaN);
+    }
+    h.texels = a.texels;
+    h.flagged_texels = a.flagged;
+    h.unseen_area_mm2 = a.unseen;
+    found.push_back(std::move(h));
+  }
+  std::sort(found.begin(), found.end(), [](const Hotspot& x, const Hotspot& y) { return x.peak > y.peak; });
+  std::vector<int> relabel(n, 0);
+  for (std::size_t k = 0; k < found.size(); ++k) {
+    relabel[found[k].id] = static_cast<int>(k) + 1;
+    found[k].id = static_cast<int>(k) + 1;
+  }
+  if (labels)
     for (int j = 0; j < g.height; ++j)
       for (int i = 0; i < g.width; ++i) {
         const float v = field.value[g.index(i, j)];
-        mask.at<std::uint8_t>(j, i) = std::isfinite(v) && v >= threshold ? 1 : 0;
+        if (std::isfinite(v) && v >= thresholds.front()) (*labels)[g.index(i, j)] = relabel[lab.at<int>(j, i)];
       }
-    cv::Mat lab;
-    const int n = cv::connectedComponents(mask, lab, 8, CV_32S);
-    struct Acc {
-      double area = 0, sum = 0, sum_w = 0, sum_vf = 0, peak = -1e300, peak_sigma = 0, sigma_sum = 0;
-      Vec3 c = Vec3::Zero(), cp = Vec3::Zero();
-      Vec2 uv = Vec2::Zero();
-      std::set<int> faces;
-      long long texels = 0, flagged = 0;
-    };
-    std::vector<Acc> acc(n);
-    for (int j = 0; j < g.height; ++j)
-      for (int i = 0; i < g.width; ++i) {
-        const int l = lab.at<int>(j, i);
-        if (l == 0) continue;
-        const auto k = g.index(i, j);
-        Acc& a = acc[l];
-        const double v = field.value[k];
-        const double area = raster.face[k] >= 0 ? raster.area_mm2[k] : g.texel_mm * g.texel_mm;
-        a.area += area;
-        a.sum += v * area;
-        a.texels += 1;
-        if (raster.face[k] >= 0) {
-          a.c += area * raster.point[k];
-          a.cp += v * area * raster.point[k];
-          a.sum_w += area;
-          a.sum_vf += v * area;
-          a.faces.insert(raster.face[k]);
-        }
-        a.uv += area * g.uv(i, j);
-        const double s = sigma ? sigma->value[k] : std::numeric_limits<double>::quiet_NaN();
-        a.sigma_sum += s * area;
-        if (v > a.peak) a.peak = v, a.peak_sigma = s;
-        if (flags && (*flags)[k]) ++a.flagged;
-      }
-    std::vector<int> relabel(n, 0);
-    std::vector<Hotspot> found;
-    for (int l = 1; l < n; ++l) {
-      const Acc& a = acc[l];
-      if (a.area < options.min_area_mm2) continue;
-      Hotspot h;
-      h.threshold = threshold;
-      h.peak = a.peak;
-      h.peak_sigma = a.peak_sigma;
-      h.mean = a.sum / a.area;
-      // Mean of correlated texels: σ̄ / sqrt(independent samples in the region).
-      h.mean_sigma = (a.sigma_sum / a.area) / std::sqrt(std::max(1.0, a.area * options.samples_per_mm2));
-      h.area_mm2 = a.area;
-      h.centroid_uv_mm = a.uv / a.area;
-      if (a.sum_w > 0) {
-        h.centroid_mm = a.c / a.sum_w;
-        h.centre_of_pressure_mm = std::abs(a.sum_vf) > 0 ? Vec3(a.cp / a.sum_vf) : h.centroid_mm;
-      } else {
-        h.centroid_mm = h.centre_of_pressure_mm = Vec3::Constant(std::numeric_limits<double>::quiet_NaN());
-      }
-      h.faces.assign(a.faces.begin(), a.faces.end());
-      h.texels = a.texels;
-      h.flagged_texels = a.flagged;
-      h.id = l;  // provisional: the component label
-      found.push_back(std::move(h));
-    }
-    std::sort(found.begin(), found.end(), [](const Hotspot& x, const Hotspot& y) { return x.peak > y.peak; });
-    for (auto& h : found) {
-      const int component = h.id;
-      h.id = static_cast<int>(all.size()) + 1;
-      relabel[component] = h.id;
-      all.push_back(h);
-    }
-    if (labels) {
-      std::vector<int> image(g.size(), 0);
-      for (int j = 0; j < g.height; ++j)
-        for (int i = 0; i < g.width; ++i) image[g.index(i, j)] = relabel[lab.at<int>(j, i)];
-      labels->push_back(std::move(image));
-    }
-  }
-  return all;
+  return found;
 }
 
 }  // namespace clearfit

@@ -90,14 +90,28 @@ json assessment_report_json(const Assessment& a, const AssessmentScene& scene, c
   const double contact = std::max(cov.contact_area_mm2, 1e-12);
   json hotspots = json::array();
   for (const Hotspot& h : a.hotspots) {
+    const double seen_and_unseen = h.area_mm2 + h.unseen_area_mm2;
     json j = {{"id", h.id},
               {"area_mm2", num(h.area_mm2)},
               {"centroid_mm", vec(h.centroid_mm)},
+              {"centroid_mean_mm", vec(h.centroid_mean_mm)},
               {"centre_of_pressure_mm", vec(h.centre_of_pressure_mm)},
               {"centroid_uv_mm", vec(h.centroid_uv_mm)},
+              {"unseen_area_mm2", num(h.unseen_area_mm2)},
+              {"unseen_share", num(seen_and_unseen > 0 ? h.unseen_area_mm2 / seen_and_unseen : 0.0)},
               {"faces", h.faces},
               {"texels", h.texels},
               {"saturated_texels", h.flagged_texels}};
+    const std::string unit = a.calibrated ? "_kpa" : "_signal";
+    json levels = json::array();
+    for (const HotspotLevel& l : h.levels)
+      levels.push_back({{"threshold" + unit, num(l.threshold)},
+                        {"area_mm2", num(l.area_mm2)},
+                        {"area_sigma_mm2", num(l.area_sigma_mm2)},
+                        {"mean" + unit, num(l.mean)},
+                        {"mean_sigma" + unit, num(l.mean_sigma)},
+                        {"texels", l.texels}});
+    j["levels"] = levels;
     if (a.calibrated) {
       j["threshold_kpa"] = num(h.threshold);
       j["peak_kpa"] = num(h.peak);
@@ -263,7 +277,7 @@ std::vector<std::string> write_assessment_outputs(const Assessment& a, const Ass
     in.range_hi = h;
     in.unit = unit;
     in.title = title;
-    if (!a.hotspot_labels.empty()) in.hotspot_labels = a.hotspot_labels.back();
+    in.hotspot_labels = a.hotspot_labels;
     write_chart_heatmap_png(in, folder / name);
     written.push_back(name);
   };

@@ -286,6 +286,12 @@ std::vector<View> make_views(const detail::HeatmapGlb& full, const json& report,
   return views;
 }
 
+// "12.4 ± 0.3" of a level's area (mm²).
+std::string level_area(const json& level) {
+  const json& sigma = at(level, "area_sigma_mm2");
+  return num(at(level, "area_mm2"), 1) + (is_number(sigma) && sigma.get<double>() > 0 ? " &plusmn; " + num(sigma, 1) : "");
+}
+
 // Hotspot markers of the 3D view: each centroid snapped to the nearest seen
 // vertex (a centroid of a curved region can lie inside the part), in the
 // scene's metres (the part node's scale), with that vertex's normal.
@@ -324,7 +330,15 @@ std::string hotspot_markers(const detail::HeatmapGlb* g, const json& hotspots, b
            num(at(h, "mean_kpa"), 2) + " &plusmn; " + num(at(h, "mean_sigma_kpa"), 2) + " kPa<br>";
     else
       s += "peak signal " + num(at(h, "peak_signal"), 4) + "<br>mean signal " + num(at(h, "mean_signal"), 4) + "<br>";
-    s += "area " + num(at(h, "area_mm2"), 1) + " mm&sup2;</div>";
+    const json& lv = at(h, "levels");
+    if (lv.is_array())
+      for (const json& level : lv) {
+        const json& t = at(level, calibrated ? "threshold_kpa" : "threshold_signal");
+        s += "area &ge; " + num(t, calibrated ? 1 : 4) + (calibrated ? " kPa" : "") + ": " + level_area(level) + " mm&sup2;<br>";
+      }
+    if (is_number(at(h, "unseen_area_mm2")) && h["unseen_area_mm2"].get<double>() > 0)
+      s += "unseen beside it: " + num(at(h, "unseen_area_mm2"), 1) + " mm&sup2;<br>";
+    s += "</div>";
   }
   return s;
 }
@@ -364,34 +378,51 @@ std::string thresholds_text(const json& report) {
   return s + " kPa";
 }
 
+// One row per place; its area (± σ) at each threshold in one column per threshold.
 std::string hotspot_table(const json& report, bool calibrated) {
   const json& hotspots = at(report, "hotspots");
   if (!hotspots.is_array() || hotspots.empty())
     return calibrated ? "<p id=\"no-hotspots\">No hotspots: no region reaches the thresholds (" + thresholds_text(report) +
                             ").</p>"
                       : "<p id=\"no-hotspots\">No hotspots: no region of significant blanching.</p>";
+  const json& thresholds = at(report, calibrated ? "thresholds_kpa" : "thresholds_signal");
+  const std::size_t levels = thresholds.is_array() ? thresholds.size() : 0;
+  const std::string unit = calibrated ? "kPa" : "";
   std::string s = "<table id=\"hotspot-table\" class=\"data\"><thead><tr><th>#</th>";
-  s += calibrated ? "<th>threshold (kPa)</th><th>peak (kPa)</th><th>peak &sigma; (kPa)</th><th>mean (kPa)</th><th>mean &sigma; (kPa)</th>"
+  s += calibrated ? "<th>peak (kPa)</th><th>peak &sigma; (kPa)</th><th>mean (kPa)</th><th>mean &sigma; (kPa)</th>"
                   : "<th>peak signal</th><th>mean signal</th>";
-  s += "<th>area (mm&sup2;)</th><th>centroid x, y, z (mm)</th><th>saturated texels</th></tr></thead><tbody>";
+  for (std::size_t l = 0; l < levels; ++l)
+    s += "<th>area &ge; " + num(thresholds[l], calibrated ? 1 : 4) + (calibrated ? " kPa" : "") + " (mm&sup2;)</th>";
+  s += "<th>centroid x, y, z (mm)</th><th>unseen beside it (mm&sup2;)</th><th>saturated texels</th></tr></thead><tbody>";
   for (const json& h : hotspots) {
     const json& c = at(h, "centroid_mm");
     std::string centroid = kDash;
     if (c.is_array() && c.size() == 3) centroid = num(c[0], 2) + ", " + num(c[1], 2) + ", " + num(c[2], 2);
     s += "<tr data-hotspot=\"" + text(at(h, "id")) + "\">" + cell("id", at(h, "id"), text(at(h, "id")));
     if (calibrated)
-      s += cell("threshold_kpa", at(h, "threshold_kpa"), num(at(h, "threshold_kpa"), 2)) +
-           cell("peak_kpa", at(h, "peak_kpa"), num(at(h, "peak_kpa"), 2)) +
+      s += cell("peak_kpa", at(h, "peak_kpa"), num(at(h, "peak_kpa"), 2)) +
            cell("peak_sigma_kpa", at(h, "peak_sigma_kpa"), num(at(h, "peak_sigma_kpa"), 2)) +
            cell("mean_kpa", at(h, "mean_kpa"), num(at(h, "mean_kpa"), 2)) +
            cell("mean_sigma_kpa", at(h, "mean_sigma_kpa"), num(at(h, "mean_sigma_kpa"), 2));
     else
       s += cell("peak_signal", at(h, "peak_signal"), num(at(h, "peak_signal"), 4)) +
            cell("mean_signal", at(h, "mean_signal"), num(at(h, "mean_signal"), 4));
-    s += cell("area_mm2", at(h, "area_mm2"), num(at(h, "area_mm2"), 1)) + cell("centroid_mm", c, centroid) +
+    const json& lv = at(h, "levels");
+    for (std::size_t l = 0; l < levels; ++l) {
+      const json& level = lv.is_array() && l < lv.size() ? lv[l] : json();
+      const std::string key = "area_mm2_" + std::to_string(l);
+      s += cell(key.c_str(), at(level, "area_mm2"), level_area(level));
+    }
+    const json& unseen = at(h, "unseen_area_mm2");
+    s += cell("centroid_mm", c, centroid) +
+         cell("unseen_area_mm2", unseen,
+              num(unseen, 1) + (is_number(unseen) && unseen.get<double>() > 0 ? " (" + percent(at(h, "unseen_share")) + ")" : "")) +
          cell("saturated_texels", at(h, "saturated_texels"), text(at(h, "saturated_texels"))) + "</tr>";
   }
-  return s + "</tbody></table>";
+  return s + "</tbody></table><p class=\"hint\">Each place once: its outline is the lowest threshold; the higher thresholds' "
+             "areas lie inside it. Unseen beside it: contact surface within 1 mm that the camera does not see (a wall seen "
+             "edge-on); it may be pressed too, and is counted neither as pressed nor as 0 (the share is of the place's seen and "
+             "unseen area).</p>";
 }
 
 std::string coverage_table(const json& report) {

@@ -29,7 +29,7 @@ struct Bump {
 struct FixtureOptions {
   bool calibrated = true;              ///< false: signal-only report (no calibration.pressure)
   std::vector<Bump> bumps = {{-8, 4, 20, 3}, {10, -5, 9, 2.5}};
-  double thresholds_kpa = 5.5;         ///< hotspots: the bumps whose peak exceeds this
+  double thresholds_kpa = 5.5;         ///< the upper threshold (the lower is 4.3); hotspots: bumps above 4.3
   int n = 24;                          ///< slab quads per edge (4 n² triangles on the big faces)
   std::string odd_text = "plain";      ///< put into warnings, file names and options
   double shift_x_mm = 0;               ///< moves the whole plate (compare: positions disagree)
@@ -82,17 +82,24 @@ inline json make_assessment_folder(const fs::path& dir, const FixtureOptions& o 
   std::vector<HeatmapMarker> markers;
   int id = 0;
   for (const Bump& b : o.bumps) {
-    if (b.peak_kpa < o.thresholds_kpa) continue;
+    if (b.peak_kpa < 4.3) continue;
     ++id;
-    // Area above the threshold of a Gaussian bump: 2 pi s² ln(peak / threshold).
-    const double area = 2 * M_PI * b.sigma_mm * b.sigma_mm * std::log(b.peak_kpa / o.thresholds_kpa);
-    json h = {{"id", id}, {"area_mm2", area}, {"centroid_mm", {b.x_mm + o.shift_x_mm, b.y_mm, 0.0}},
-              {"centroid_uv_mm", {b.x_mm, b.y_mm}}, {"faces", {0}}, {"saturated_texels", 0}};
+    // Area above a threshold t of a Gaussian bump: 2 pi s² ln(peak / t); mean over it (peak - t) / ln(peak / t).
+    auto area = [&](double t) { return b.peak_kpa > t ? 2 * M_PI * b.sigma_mm * b.sigma_mm * std::log(b.peak_kpa / t) : 0.0; };
+    auto mean = [&](double t) { return b.peak_kpa > t ? (b.peak_kpa - t) / std::log(b.peak_kpa / t) : NAN; };
+    json levels = json::array();
+    for (double t : {4.3, o.thresholds_kpa})
+      levels.push_back({{o.calibrated ? "threshold_kpa" : "threshold_signal", o.calibrated ? t : fixture_signal(t)},
+                        {"area_mm2", area(t)}, {"area_sigma_mm2", 0.1 * area(t)},
+                        {o.calibrated ? "mean_kpa" : "mean_signal", o.calibrated ? mean(t) : fixture_signal(mean(t))}});
+    json h = {{"id", id}, {"area_mm2", area(4.3)}, {"centroid_mm", {b.x_mm + o.shift_x_mm, b.y_mm, 0.0}},
+              {"centroid_uv_mm", {b.x_mm, b.y_mm}}, {"faces", {0}}, {"saturated_texels", 0}, {"levels", levels},
+              {"unseen_area_mm2", 0.0}, {"unseen_share", 0.0}};
     if (o.calibrated) {
-      h["threshold_kpa"] = o.thresholds_kpa;
+      h["threshold_kpa"] = 4.3;
       h["peak_kpa"] = b.peak_kpa;
       h["peak_sigma_kpa"] = 0.05 * b.peak_kpa + 0.3;
-      h["mean_kpa"] = (b.peak_kpa - o.thresholds_kpa) / std::log(b.peak_kpa / o.thresholds_kpa);
+      h["mean_kpa"] = mean(4.3);
       h["mean_sigma_kpa"] = 0.4;
     } else {
       h["threshold_kpa"] = nullptr;
@@ -181,6 +188,7 @@ inline json make_assessment_folder(const fs::path& dir, const FixtureOptions& o 
                                        {"mean_kpa", 3.1}, {"below_detection_fraction", 0.4}, {"saturated_fraction", 0.0}}
                                 : json(nullptr)},
       {"thresholds_kpa", o.calibrated ? json{4.3, o.thresholds_kpa} : json(nullptr)},
+      {"thresholds_signal", o.calibrated ? json::array() : json{fixture_signal(4.3), fixture_signal(o.thresholds_kpa)}},
       {"hotspots", hotspots},
       {"warnings", {"motion during the worn capture: 0.8 px, compensated", o.odd_text}},
       {"outputs", {{"heatmap_glb", "heatmap.glb"}, {"chart_pressure_png", "chart_pressure.png"},

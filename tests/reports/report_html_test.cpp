@@ -90,14 +90,21 @@ TEST_F(ReportHtml, HotspotTableMatchesReportJson) {
     std::map<std::string, std::pair<std::string, std::string>> by_key;
     for (auto c = std::sregex_iterator(cells.begin(), cells.end(), cell_re); c != std::sregex_iterator(); ++c)
       by_key[(*c)[1]] = {(*c)[2], (*c)[3]};
-    for (const char* key : {"threshold_kpa", "peak_kpa", "peak_sigma_kpa", "mean_kpa", "mean_sigma_kpa"}) {
+    for (const char* key : {"peak_kpa", "peak_sigma_kpa", "mean_kpa", "mean_sigma_kpa"}) {
       ASSERT_TRUE(by_key.count(key)) << key;
       EXPECT_DOUBLE_EQ(std::stod(by_key[key].first), h[key].get<double>()) << key;
       EXPECT_EQ(by_key[key].second, fixed2(h[key].get<double>())) << key;
     }
-    char area[32];
-    std::snprintf(area, sizeof area, "%.1f", h["area_mm2"].get<double>());
-    EXPECT_EQ(by_key["area_mm2"].second, area);
+    // One row per place, its area (± σ) at each threshold in a column of its own.
+    for (std::size_t l = 0; l < h["levels"].size(); ++l) {
+      const json& level = h["levels"][l];
+      char area[64];
+      std::snprintf(area, sizeof area, "%.1f &plusmn; %.1f", level["area_mm2"].get<double>(), level["area_sigma_mm2"].get<double>());
+      const std::string key = "area_mm2_" + std::to_string(l);
+      ASSERT_TRUE(by_key.count(key)) << key;
+      EXPECT_EQ(by_key[key].second, area) << key;
+      EXPECT_DOUBLE_EQ(std::stod(by_key[key].first), level["area_mm2"].get<double>()) << key;
+    }
     EXPECT_EQ(json::parse(by_key["centroid_mm"].first), h["centroid_mm"]);
   }
   EXPECT_EQ(rows, 2);

@@ -118,8 +118,8 @@ try {
   if (rows.length !== hotspots.length) fail(`hotspot table has ${rows.length} rows, report.json ${hotspots.length} hotspots`);
   const calibrated = Boolean(report.calibration && report.calibration.pressure);
   const digits = calibrated
-    ? { threshold_kpa: 2, peak_kpa: 2, peak_sigma_kpa: 2, mean_kpa: 2, mean_sigma_kpa: 2, area_mm2: 1 }
-    : { peak_signal: 4, mean_signal: 4, area_mm2: 1 };
+    ? { peak_kpa: 2, peak_sigma_kpa: 2, mean_kpa: 2, mean_sigma_kpa: 2 }
+    : { peak_signal: 4, mean_signal: 4 };
   const shown = (v, d) => (v === null || v === undefined ? '\u2014' : v.toFixed(d));
   hotspots.forEach((h, i) => {
     const row = rows[i];
@@ -133,6 +133,13 @@ try {
       if (cell.text !== shown(h[key] ?? null, d)) fail(`hotspot ${h.id} ${key}: shows "${cell.text}", expected "${shown(h[key] ?? null, d)}"`);
     }
     if (JSON.stringify(JSON.parse(row.cells.centroid_mm.value)) !== JSON.stringify(h.centroid_mm)) fail(`hotspot ${h.id}: centroid differs`);
+    // One row per place: its area at each threshold (levels) in a column of its own.
+    (h.levels || []).forEach((level, l) => {
+      const cell = row.cells[`area_mm2_${l}`];
+      if (!cell) { fail(`hotspot ${h.id}: no area column for level ${l}`); return; }
+      if (JSON.parse(cell.value) !== level.area_mm2) fail(`hotspot ${h.id} level ${l}: area ${cell.value}, report.json ${level.area_mm2}`);
+      if (!cell.text.startsWith(shown(level.area_mm2, 1))) fail(`hotspot ${h.id} level ${l}: shows "${cell.text}"`);
+    });
   });
 
   // A click on a marker shows its numbers.

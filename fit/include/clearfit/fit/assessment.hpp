@@ -70,7 +70,7 @@ struct Assessment {
   double peak_kpa = 0, mean_kpa = 0;         ///< over seen texels with an estimate
   std::vector<Hotspot> hotspots;
   std::vector<double> thresholds;            ///< the thresholds used, in the field's unit
-  std::vector<std::vector<int>> hotspot_labels;  ///< one label image per threshold
+  std::vector<int> hotspot_labels;           ///< place id per texel (0 = none), for outlines
   std::vector<float> vertex_pressure, vertex_signal;  ///< per mesh vertex, NaN where unseen / off the contact
   cv::Mat skin_camera;                       ///< last worn frame (BGR8), as the camera saw it
   cv::Mat skin_chart;                        ///< the same resampled onto the chart (BGR8)

@@ -25,35 +25,66 @@ struct ChartRaster {
 /// by neighbouring triangles go to one of them).
 ChartRaster rasterize_chart(const Mesh& mesh, const Chart& chart, const ChartGrid& grid);
 
+/// A place at one threshold: the part of it at or above the threshold.
+struct HotspotLevel {
+  double threshold = 0;          ///< in the field's unit
+  double area_mm2 = 0;           ///< seen skin at or above the threshold
+  /// 1-σ of the area: half the skin area whose value lies within ±σ of the
+  /// threshold (between "value + σ ≥ t" and "value − σ ≥ t"); 0 without a sigma field.
+  double area_sigma_mm2 = 0;
+  double mean = 0, mean_sigma = 0;  ///< over that area (NaN σ without a sigma field)
+  long long texels = 0;
+};
+
+/// One place: a connected region at the lowest threshold (thresholds nest, so
+/// each higher level lies inside one place), with its levels.
 struct Hotspot {
   int id = 0;                         ///< 1-based, by decreasing peak
-  double threshold = 0;               ///< in the field's unit
-  double peak = 0, mean = 0;          ///< field values
+  double threshold = 0;               ///< the lowest threshold (the place's outline)
+  double peak = 0, mean = 0;          ///< field values (mean over the place)
   double peak_sigma = 0, mean_sigma = 0;  ///< 1-σ uncertainties (NaN if no sigma field)
-  double area_mm2 = 0;
-  Vec3 centroid_mm = Vec3::Zero();    ///< area-weighted, part frame
-  Vec3 centre_of_pressure_mm = Vec3::Zero();  ///< field-weighted, part frame
+  double area_mm2 = 0;                ///< skin area of the place (its lowest level)
+  Vec3 centroid_mm = Vec3::Zero();    ///< on the contact surface: the point of it nearest to centroid_mean_mm
+  Vec3 centroid_mean_mm = Vec3::Zero();  ///< area-weighted 3D mean (inside a curved surface)
+  Vec3 centre_of_pressure_mm = Vec3::Zero();  ///< field-weighted 3D mean, moved onto the surface likewise
   Vec2 centroid_uv_mm = Vec2::Zero();
   std::vector<int> faces;             ///< mesh faces covered (ascending)
   long long texels = 0;
   long long flagged_texels = 0;       ///< texels flagged saturated inside the region
+  /// Contact surface the camera does not see within HotspotOptions::unseen_reach_mm
+  /// of the place (a bump's wall seen edge-on): it may be pressed too; the
+  /// place's figures count only what was seen.
+  double unseen_area_mm2 = 0;
+  std::vector<HotspotLevel> levels;   ///< one per threshold, ascending
 };
 
 struct HotspotOptions {
-  std::vector<double> thresholds;     ///< one set of regions per threshold
-  double min_area_mm2 = 0.05;         ///< smaller regions are dropped (noise specks)
+  std::vector<double> thresholds;     ///< nested levels; sorted ascending inside
+  double min_area_mm2 = 0.05;         ///< smaller places are dropped (noise specks)
   /// Independent samples per mm² of the field (for the mean's uncertainty):
   /// 1 / (4π σ²) for a field smoothed with a Gaussian of σ mm.
   double samples_per_mm2 = 1.0;
+  /// Unseen contact texels (NaN in the field) this close to a place (chart mm)
+  /// join it as unseen: they connect the seen parts around them (the face and
+  /// the plate beside a bump's wall are one place) and count in unseen_area_mm2,
+  /// never as pressure 0.
+  double unseen_reach_mm = 1.0;
 };
 
-/// Regions of `field` ≥ threshold (8-connected on the texel grid), per
-/// threshold, sorted by threshold then decreasing peak; ids run 1.. across all.
-/// `sigma` (optional) gives per-texel uncertainties; `flags` (optional, 1 =
-/// saturated) counts flagged texels. `labels` (optional) receives one image
-/// per threshold: the hotspot id per texel (0 = none), for drawing outlines.
+/// Places of `field` (8-connected on the texel grid at the lowest threshold,
+/// through unseen texels within reach), sorted by decreasing peak, each with
+/// its area, mean and σ at every threshold. `sigma` (optional) gives per-texel
+/// uncertainties; `flags` (optional, 1 = saturated) counts flagged texels.
+/// `labels` (optional) receives the place id per texel (0 = none; seen texels
+/// at or above the lowest threshold), for drawing outlines. `mesh` (optional,
+/// the raster's mesh) puts the centroids on the surface exactly; without it
+/// they snap to the nearest texel centre.
 std::vector<Hotspot> find_hotspots(const ChartField& field, const ChartField* sigma, const std::vector<std::uint8_t>* flags,
                                    const ChartRaster& raster, const HotspotOptions& options,
-                                   std::vector<std::vector<int>>* labels = nullptr);
+                                   std::vector<int>* labels = nullptr, const Mesh* mesh = nullptr);
+
+/// Barycentric weights of the point of triangle abc closest to p (Ericson,
+/// Real-Time Collision Detection, 5.1.5).
+Eigen::Vector3d closest_barycentric(const Vec3& p, const Vec3& a, const Vec3& b, const Vec3& c);
 
 }  // namespace clearfit

@@ -1,0 +1,122 @@
+// Hotspots against hand-computed cases: nested thresholds give one place with
+// its area at each level (closed forms of a Gaussian), ids and label image
+// agree, unseen texels between two pressed parts join them as unseen (not as
+// 0), and the centroid lies on a curved surface while the 3D mean lies inside.
+#include <clearfit/fit/hotspots.hpp>
+#include <clearfit/geometry/chart.hpp>
+#include <clearfit/geometry/shapes.hpp>
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <functional>
+#include <numbers>
+
+#include "../support/trace_part.hpp"
+
+namespace clearfit {
+namespace {
+
+constexpr double kPi = std::numbers::pi;
+
+struct Flat {
+  test::TracePart part{shapes::slab(20, 20, 2, 8)};
+  Chart chart = compute_chart(part.mesh, part.contact);
+  ChartGrid grid = ChartGrid::covering(chart.uv_min, chart.uv_max, 0.02);
+  ChartRaster raster = rasterize_chart(part.mesh, chart, grid);
+  Vec2 centre = 0.5 * (chart.uv_min + chart.uv_max);
+  ChartField field(const std::function<double(double dx, double dy)>& f) const {
+    ChartField out{grid, std::vector<float>(grid.size(), NAN)};
+    for (int j = 0; j < grid.height; ++j)
+      for (int i = 0; i < grid.width; ++i)
+        if (raster.face[grid.index(i, j)] >= 0) {
+          const Vec2 d = grid.uv(i, j) - centre;
+          out.value[grid.index(i, j)] = static_cast<float>(f(d.x(), d.y()));
+        }
+    return out;
+  }
+};
+
+TEST(Hotspots, NestedThresholdsGiveOnePlaceWithItsAreaAtEachLevel) {
+  const Flat f;
+  const double peak = 12, s = 1.5;
+  // Two Gaussians 8 mm apart: two places, each listed once.
+  const ChartField p = f.field([&](double x, double y) {
+    return peak * std::exp(-((x + 4) * (x + 4) + y * y) / (2 * s * s)) + 0.6 * peak * std::exp(-((x - 4) * (x - 4) + y * y) / (2 * s * s));
+  });
+  ChartField sigma{f.grid, std::vector<float>(f.grid.size(), 0.2f)};
+  HotspotOptions o;
+  o.thresholds = {5.5, 4.3};  // any order: they nest
+  std::vector<int> labels;
+  const auto hs = find_hotspots(p, &sigma, nullptr, f.raster, o, &labels, &f.part.mesh);
+  ASSERT_EQ(hs.size(), 2u);
+  for (int k = 0; k < 2; ++k) {
+    const Hotspot& h = hs[k];
+    const double top = k == 0 ? peak : 0.6 * peak;
+    EXPECT_EQ(h.id, k + 1);
+    EXPECT_NEAR(h.peak, top, 0.01);
+    ASSERT_EQ(h.levels.size(), 2u);
+    for (int l = 0; l < 2; ++l) {
+      const double t = l == 0 ? 4.3 : 5.5;
+      EXPECT_EQ(h.levels[l].threshold, t);
+      // Area where top·exp(−r²/2s²) ≥ t: 2πs²·ln(top/t); its σ: the band where |p − t| ≤ 0.2.
+      EXPECT_NEAR(h.levels[l].area_mm2, 2 * kPi * s * s * std::log(top / t), 0.05) << k << " " << l;
+      EXPECT_NEAR(h.levels[l].area_sigma_mm2, 0.5 * 2 * kPi * s * s * std::log((t + 0.2) / (t - 0.2)), 0.03) << k << " " << l;
+      EXPECT_NEAR(h.levels[l].mean, (top - t) / std::log(top / t), 0.02);
+    }
+    EXPECT_EQ(h.area_mm2, h.levels[0].area_mm2);
+    EXPECT_NEAR(h.centroid_mm.x(), k == 0 ? -4 : 4, 0.01);
+    EXPECT_EQ(h.unseen_area_mm2, 0.0);
+    // The label image carries the same id over the place's lowest level.
+    long long n = 0;
+    for (int id : labels) n += id == h.id;
+    EXPECT_EQ(n, h.levels[0].texels);
+  }
+}
+
+TEST(Hotspots, UnseenTexelsBetweenPressedPartsJoinThemAsUnseen) {
+  const Flat f;
+  // A pressed disk (r < 1.5), an unseen ring (1.5..2.3), a pressed ring (2.3..2.8), as a bump's face, wall and plate.
+  const ChartField p = f.field([](double x, double y) {
+    const double r = std::hypot(x, y);
+    return r < 1.5 ? 10.0 : r < 2.3 ? NAN : r < 2.8 ? 8.0 : 0.0;
+  });
+  HotspotOptions o;
+  o.thresholds = {4.3};
+  const auto joined = find_hotspots(p, nullptr, nullptr, f.raster, o);
+  ASSERT_EQ(joined.size(), 1u);
+  EXPECT_NEAR(joined[0].area_mm2, kPi * (1.5 * 1.5 + 2.8 * 2.8 - 2.3 * 2.3), 0.1);
+  EXPECT_NEAR(joined[0].unseen_area_mm2, kPi * (2.3 * 2.3 - 1.5 * 1.5), 0.1);  // counted as unseen, not as 0 kPa
+  EXPECT_NEAR(joined[0].mean, (10 * 1.5 * 1.5 + 8 * (2.8 * 2.8 - 2.3 * 2.3)) / (1.5 * 1.5 + 2.8 * 2.8 - 2.3 * 2.3), 0.05);
+  o.unseen_reach_mm = 0.3;  // too short to cross the 0.8 mm ring: two places, each with unseen skin beside it
+  const auto apart = find_hotspots(p, nullptr, nullptr, f.raster, o);
+  ASSERT_EQ(apart.size(), 2u);
+  EXPECT_GT(apart[0].unseen_area_mm2, 0.5);
+  EXPECT_GT(apart[1].unseen_area_mm2, 0.5);
+}
+
+TEST(Hotspots, CentroidLiesOnACurvedSurfaceAndTheMeanInside) {
+  const double r_in = 10;
+  test::TracePart part(shapes::cylindrical_shell(r_in, 12, 120, 10, 96, 10));
+  const Chart chart = compute_chart(part.mesh, part.contact);
+  const ChartGrid grid = ChartGrid::covering(chart.uv_min, chart.uv_max, 0.05);
+  const ChartRaster raster = rasterize_chart(part.mesh, chart, grid);
+  const Vec2 centre = 0.5 * (chart.uv_min + chart.uv_max);
+  ChartField p{grid, std::vector<float>(grid.size(), NAN)};
+  for (int j = 0; j < grid.height; ++j)
+    for (int i = 0; i < grid.width; ++i)
+      if (raster.face[grid.index(i, j)] >= 0)
+        p.value[grid.index(i, j)] = static_cast<float>(10 * std::exp(-(grid.uv(i, j) - centre).squaredNorm() / (2 * 3.0 * 3.0)));
+  HotspotOptions o;
+  o.thresholds = {4.3};
+  const auto hs = find_hotspots(p, nullptr, nullptr, raster, o, nullptr, &part.mesh);
+  ASSERT_EQ(hs.size(), 1u);
+  auto radius = [](const Vec3& v) { return std::hypot(v.x(), v.z()); };  // the shell's axis is y
+  std::printf("centroid at radius %.4f, 3D mean at %.4f (inner surface %.1f)\n", radius(hs[0].centroid_mm), radius(hs[0].centroid_mean_mm), r_in);
+  EXPECT_LT(radius(hs[0].centroid_mean_mm), r_in - 0.05);  // a curved region's mean lies inside the skin
+  // On the faceted surface: within the facets' sagitta r(1 − cos(π/96 · 120/360)) of the circle.
+  EXPECT_NEAR(radius(hs[0].centroid_mm), r_in, r_in * (1 - std::cos(kPi * 120 / 360 / 96)) + 1e-9);
+  EXPECT_NEAR((hs[0].centroid_mm - hs[0].centroid_mean_mm).norm(), r_in - radius(hs[0].centroid_mean_mm), 0.01);
+}
+
+}  // namespace
+}  // namespace clearfit
