@@ -4,6 +4,7 @@
 
 #include <clearfit/error.hpp>
 #include <clearfit/fit/pressure_model.hpp>
+#include <clearfit/study/fingertip_fe.hpp>
 
 #include <cmath>
 #include <cstdio>
@@ -108,8 +109,29 @@ json participant_row(const std::string& id, const std::vector<const JobRecord*>&
   return row;
 }
 
-/// Per condition: means of the trial figures and the averaged profile.
-json condition_row(const Condition& c, const std::vector<const JobRecord*>& records, json& profiles) {
+/// The study's PLS for a bump condition: its averaged colour profile on the
+/// layered model's stress by depth under a punch of the bump's size.
+void add_stress_pls(const Condition& c, const RadialProfile& profile, json& row, json& pls_rows) {
+  PunchFeOptions fe;
+  fe.punch_radius_mm = c.bump->diameter_mm / 2;
+  fe.depth_mm = c.bump->height_mm;
+  fe.element_mm = std::min(0.1, fe.punch_radius_mm / 4);
+  try {
+    const PunchStress stress = solve_punch_stress(fe);
+    const StressPls pls = stress_profile_pls(profile, stress, 2);
+    row.update({{"pls_r2", pls.r2}, {"vip_above_1", pls.important_depths()}, {"punch_force_n", stress.force_n}});
+    for (std::size_t k = 0; k < pls.depth_mm.size(); ++k) {
+      double peak = 0;
+      for (std::size_t i = 0; i < stress.r_mm.size(); ++i) peak = std::max(peak, stress.vm(k, i));
+      pls_rows.push_back({{"condition", c.id}, {"depth_mm", pls.depth_mm[k]}, {"vip", pls.vip[k]}, {"peak_von_mises_kpa", peak}});
+    }
+  } catch (const std::exception& e) {
+    row["note"] = std::string("no stress PLS: ") + e.what();
+  }
+}
+
+/// Per condition: means of the trial figures, the averaged profile and, for a bump, the stress PLS.
+json condition_row(const Condition& c, const std::vector<const JobRecord*>& records, json& profiles, json& pls_rows) {
   json row{{"condition", c.id}, {"trials", records.size()}};
   if (c.bump) row.update({{"diameter_mm", c.bump->diameter_mm}, {"height_mm", c.bump->height_mm}});
   std::map<std::string, std::vector<double>> values;
@@ -137,6 +159,7 @@ json condition_row(const Condition& c, const std::vector<const JobRecord*>& reco
     for (std::size_t k = 0; k < mean.position_mm.size(); ++k)
       profiles.push_back({{"condition", c.id}, {"position_mm", mean.position_mm[k]},
                           {"signal", number_or_null(mean.value[k])}, {"segments", mean.segments[k]}});
+    if (c.bump) add_stress_pls(c, mean, row, pls_rows);
   }
   return row;
 }
@@ -152,6 +175,7 @@ StudyTables reduce_study(const Manifest& m, const RunContext& context) {
     (records.back().ok ? tables.ok : tables.failed)++;
   }
   json trials = json::array(), participants = json::array(), conditions = json::array(), profiles = json::array();
+  json pls_rows = json::array();
   json failures = json::array();
   for (const JobRecord& r : records) {
     trials.push_back(trial_row(m, r));
@@ -175,14 +199,14 @@ StudyTables reduce_study(const Manifest& m, const RunContext& context) {
     std::vector<const JobRecord*> mine;
     for (const JobRecord& r : records)
       if (m.trials[r.index].condition == c.id) mine.push_back(&r);
-    conditions.push_back(condition_row(c, mine, profiles));
+    conditions.push_back(condition_row(c, mine, profiles, pls_rows));
   }
   tables.summary = {{"schema", "clearfit.study-summary/1"}, {"study", m.study}, {"manifest", m.path.string()},
                     {"jobs", {{"total", records.size()}, {"ok", tables.ok}, {"failed", tables.failed}}},
                     {"failed", failures},
                     {"regression", {{"participants", r2.size()}, {"mean_r2", number_or_null(mean_of(r2))},
                                     {"significant_5pct", sig5}, {"significant_10pct", sig10}, {"study_mean_r2", 0.439}}},
-                    {"trials", trials}, {"participants", participants}, {"conditions", conditions}};
+                    {"trials", trials}, {"participants", participants}, {"conditions", conditions}, {"pls", pls_rows}};
   fs::create_directories(context.out);
   write_file(context.out / "trials.csv",
              to_csv(trials, {"trial", "participant", "condition", "status", "force_n", "mean_pressure_kpa", "contact_signal",
@@ -196,9 +220,11 @@ StudyTables reduce_study(const Manifest& m, const RunContext& context) {
              tables);
   write_file(context.out / "conditions.csv",
              to_csv(conditions, {"condition", "diameter_mm", "height_mm", "trials", "failed", "mean_contact_signal",
-                                 "mean_contact_pressure_kpa", "mean_peak_kpa", "mean_blanched_area_mm2"}),
+                                 "mean_contact_pressure_kpa", "mean_peak_kpa", "mean_blanched_area_mm2", "pls_r2",
+                                 "vip_above_1", "punch_force_n", "note"}),
              tables);
   write_file(context.out / "profiles.csv", to_csv(profiles, {"condition", "position_mm", "signal", "segments"}), tables);
+  write_file(context.out / "pls.csv", to_csv(pls_rows, {"condition", "depth_mm", "vip", "peak_von_mises_kpa"}), tables);
   write_file(context.out / "study.json", tables.summary.dump(2) + "\n", tables);
   return tables;
 }

@@ -2,6 +2,7 @@
 // body (Sneddon's flat punch and Boussinesq's point load, fit/contact_mechanics),
 // mesh convergence, and the study's edge concentration on its layered fingertip.
 #include <clearfit/fit/contact_mechanics.hpp>
+#include <clearfit/study/analysis.hpp>
 #include <clearfit/study/fingertip_fe.hpp>
 
 #include <gtest/gtest.h>
@@ -109,6 +110,40 @@ TEST(FingertipFe, RefusesInvalidOptions) {
   o = PunchFeOptions();
   o.punch_radius_mm = 0;
   EXPECT_THROW(solve_punch_stress(o), std::invalid_argument);
+}
+
+}  // namespace
+}  // namespace clearfit::study
+
+namespace clearfit::study {
+namespace {
+
+TEST(StressPls, ShallowStressExplainsAShallowProfile) {
+  PunchFeOptions o;  // 4 mm punch, 1 mm deep, coarse mesh
+  o.element_mm = 0.1;
+  const PunchStress s = solve_punch_stress(o);
+  // A colour profile that follows the stress 0.1 mm deep (blurred edge, saturating), sampled as the study does.
+  RadialProfile colour;
+  for (int k = -140; k <= 140; ++k) {
+    const double r = std::abs(k * 0.05);
+    const std::size_t i = std::min<std::size_t>(static_cast<std::size_t>(std::lround(r / o.grid_step_mm)), s.r_mm.size() - 1);
+    colour.position_mm.push_back(k * 0.05);
+    colour.value.push_back(0.05 * std::tanh(s.vm(2, i) / 30.0));
+    colour.segments.push_back(9);
+  }
+  const StressPls pls = stress_profile_pls(colour, s, 2);
+  std::printf("PLS R² %.3f over %d radii; VIP > 1 at %s\n", pls.r2, pls.samples, pls.important_depths().c_str());
+  EXPECT_GT(pls.r2, 0.9);
+  double shallow = 0, deep = 0;  // the largest VIP down to 0.3 mm, and below 1 mm
+  for (std::size_t k = 0; k < pls.depth_mm.size(); ++k) {
+    if (pls.depth_mm[k] <= 0.3) shallow = std::max(shallow, pls.vip[k]);
+    if (pls.depth_mm[k] >= 1.0) deep = std::max(deep, pls.vip[k]);
+  }
+  EXPECT_GT(shallow, 1.0);
+  EXPECT_GT(shallow, deep);
+  RadialProfile empty = colour;
+  for (double& v : empty.value) v = NAN;
+  EXPECT_THROW(stress_profile_pls(empty, s, 2), std::invalid_argument);
 }
 
 }  // namespace

@@ -58,3 +58,23 @@ PunchStress solve_punch_stress(const PunchFeOptions& options);
 PunchStress solve_disc_load_stress(const PunchFeOptions& options, double load_radius_mm, double pressure_kpa);
 
 }  // namespace clearfit::study
+
+namespace clearfit::study {
+
+struct RadialProfile;
+
+/// The study's PLS (PAPER.md): the 1D colour profile (response, folded about
+/// the bump centre: the mean of ±r) against the von Mises stress at each depth
+/// of the grid (predictors, highly collinear), over the grid's radii where the
+/// profile is defined. R² of the fit and VIP per depth.
+struct StressPls {
+  int components = 0, samples = 0;
+  double r2 = 0;
+  std::vector<double> depth_mm, vip;
+  /// The depths with VIP > 1, as "a–b mm" ranges joined by ", " (empty if none).
+  std::string important_depths() const;
+};
+/// Throws std::invalid_argument when fewer than components + 2 radii are defined.
+StressPls stress_profile_pls(const RadialProfile& colour, const PunchStress& stress, int components = 2);
+
+}  // namespace clearfit::study
