@@ -23,69 +23,17 @@ namespace {
 namespace fs = std::filesystem;
 
 struct AssessOpts {
-  std::string scene, out, baseline, worn, both, calibration, person;
-  int window_frames = 100;
-  double max_motion_px = 10.0, smoothing_mm = 0.25, texel_mm = 0.05, min_area_mm2 = 0.05;
-  std::vector<double> thresholds_kpa{4.3, 5.5};
-  std::vector<double> reference_uv;
-  double reference_radius_mm = 2.0;
-  bool no_motion = false, no_html = false, quiet = false;
-  PartOptions part;
+  std::string scene_file;
+  Scene scene;
+  SceneFields::Options options;
+  CacheOptions cache;
+  bool no_html = false, quiet = false;
 };
-
-/// The scene's captures / calibration / assess sections.
-void read_assess_sections(const SceneFile& sc, const CLI::App& sub, AssessOpts& o) {
-  SceneReader r(sc.path);
-  const YAML::Node& root = sc.root;
-  if (const YAML::Node c = root["captures"]) {
-    r.only_keys(c, "captures", {"baseline", "worn", "both", "window_frames", "max_motion_px", "motion_compensation"});
-    take_from_scene(sub, "--baseline", o.baseline, r.path(c, "baseline", "captures.baseline"));
-    take_from_scene(sub, "--worn", o.worn, r.path(c, "worn", "captures.worn"));
-    take_from_scene(sub, "--both", o.both, r.path(c, "both", "captures.both"));
-    take_from_scene(sub, "--window-frames", o.window_frames, r.get<int>(c, "window_frames", "captures.window_frames", "a whole number of frames"));
-    take_from_scene(sub, "--max-motion-px", o.max_motion_px, r.get<double>(c, "max_motion_px", "captures.max_motion_px", "a number of pixels"));
-    if (const auto m = r.get<bool>(c, "motion_compensation", "captures.motion_compensation", "true or false"); m && sub.count("--no-motion-compensation") == 0)
-      o.no_motion = !*m;
-  }
-  if (const YAML::Node c = root["calibration"]) {
-    r.only_keys(c, "calibration", {"pressure", "person"});
-    take_from_scene(sub, "--calibration", o.calibration, r.path(c, "pressure", "calibration.pressure"));
-    take_from_scene(sub, "--person", o.person, r.get<std::string>(c, "person", "calibration.person", "a person's id"));
-  }
-  if (const YAML::Node a = root["assess"]) {
-    r.only_keys(a, "assess", {"smoothing_mm", "thresholds_kpa", "reference_uv_mm", "reference_radius_mm", "min_hotspot_area_mm2"});
-    take_from_scene(sub, "--smoothing-mm", o.smoothing_mm, r.get<double>(a, "smoothing_mm", "assess.smoothing_mm", "a length in mm"));
-    take_from_scene(sub, "--min-hotspot-area-mm2", o.min_area_mm2, r.get<double>(a, "min_hotspot_area_mm2", "assess.min_hotspot_area_mm2", "an area in mm²"));
-    take_from_scene(sub, "--reference-radius-mm", o.reference_radius_mm, r.get<double>(a, "reference_radius_mm", "assess.reference_radius_mm", "a length in mm"));
-    auto numbers = [&](const char* key, const char* full, std::vector<double>& out, const char* option, std::size_t count) {
-      const YAML::Node n = a[key];
-      if (!n || sub.count(option) > 0) return;
-      if (!n.IsSequence() || (count && n.size() != count) || n.size() == 0)
-        r.fail(n, full, count ? "expected " + std::to_string(count) + " numbers" : "expected a list of numbers");
-      out.clear();
-      for (const auto& e : n) {
-        try {
-          out.push_back(e.as<double>());
-        } catch (const YAML::Exception&) {
-          r.fail(e, full, "expected a number, got '" + e.Scalar() + "'");
-        }
-      }
-    };
-    numbers("thresholds_kpa", "assess.thresholds_kpa", o.thresholds_kpa, "--thresholds-kpa", 0);
-    numbers("reference_uv_mm", "assess.reference_uv_mm", o.reference_uv, "--reference-uv-mm", 2);
-  }
-  take_from_scene(sub, "--out", o.out, sc.out_folder);
-  take_from_scene(sub, "--texel-mm", o.texel_mm, sc.texel_mm);
-}
 
 std::string fmt(double v, int digits = 1) {
   char buf[64];
   std::snprintf(buf, sizeof buf, "%.*f", digits, v);
   return buf;
-}
-
-void check_positive(const char* option, double v) {
-  if (!(std::isfinite(v) && v > 0)) throw InputError("", option, "must be a positive number");
 }
 
 /// Outputs go to a staging folder beside the target, which replaces the target
@@ -122,30 +70,14 @@ class StagedFolder {
 };
 
 void add_assess_options(CLI::App& sub, AssessOpts& o) {
-  sub.add_option("--out", o.out, "Output folder (default: the scene's outputs.folder, else out/ beside the scene)");
-  sub.add_option("--baseline", o.baseline, "Not-worn capture: a video or a folder of images");
-  sub.add_option("--worn", o.worn, "Worn capture: a video or a folder of images");
-  sub.add_option("--both", o.both, "One capture holding the baseline and then the press (split automatically)");
-  sub.add_option("--calibration", o.calibration, "Per-person pressure calibration (from clearfit calibrate-pressure)");
-  sub.add_option("--person", o.person, "Who wears the part (checked against the calibration)");
-  sub.add_option("--window-frames", o.window_frames, "Frames averaged per phase")->capture_default_str();
-  sub.add_option("--max-motion-px", o.max_motion_px, "Motion beyond this is refused, px")->capture_default_str();
-  sub.add_flag("--no-motion-compensation", o.no_motion, "Do not measure or undo motion between frames");
-  sub.add_option("--smoothing-mm", o.smoothing_mm, "Gaussian smoothing of the signal on the chart, mm")->capture_default_str();
-  sub.add_option("--thresholds-kpa", o.thresholds_kpa, "Hotspot thresholds, kPa")->delimiter(',')->capture_default_str();
-  sub.add_option("--reference-uv-mm", o.reference_uv, "Centre u,v (chart mm) of an unpressed reference disk (default: automatic)")
-      ->delimiter(',')->expected(2);
-  sub.add_option("--reference-radius-mm", o.reference_radius_mm, "Radius of the reference disk, mm")->capture_default_str();
-  sub.add_option("--min-hotspot-area-mm2", o.min_area_mm2, "Smaller hotspots are dropped, mm²")->capture_default_str();
-  sub.add_option("--texel-mm", o.texel_mm, "Texel size of the chart grid, mm")->capture_default_str();
+  o.options = add_scene_options(sub, o.scene, {"", "contact", "map", "outputs.folder", "outputs.texel_mm", "captures", "calibration", "assess"});
+  add_cache_options(sub, o.cache);
   sub.add_flag("--no-html", o.no_html, "Do not write report.html");
   sub.add_flag("--quiet", o.quiet, "No progress on stderr");
-  add_part_options(sub, o.part);
 }
 
 /// Everything an assessment needs before reading the captures.
 struct Prepared {
-  SceneFile scene;
   std::unique_ptr<LoadedPart> part;
   RefractionMap map;
   InverseMap inverse;
@@ -161,30 +93,20 @@ struct Prepared {
 
 /// Reads the scene (the command line wins), checks the options, loads and
 /// traces the part, reads the calibration.
-std::unique_ptr<Prepared> prepare(AssessOpts& o, const CLI::App& sub) {
+std::unique_ptr<Prepared> prepare(AssessOpts& o) {
   auto p = std::make_unique<Prepared>();
-  p->scene = read_scene(o.scene);
-  const SceneFile& sc = p->scene;
-  take_scene_part_options(sc, sub, o.part);
-  read_assess_sections(sc, sub, o);
-  if (o.out.empty()) o.out = (sc.path.parent_path() / "out").string();
-  if (o.window_frames < 1) throw InputError(o.scene, "captures.window_frames", "must be at least 1 frame");
-  check_positive("--max-motion-px", o.max_motion_px);
-  check_positive("--texel-mm", o.texel_mm);
-  check_positive("--min-hotspot-area-mm2", o.min_area_mm2);
-  check_positive("--reference-radius-mm", o.reference_radius_mm);
-  if (!(std::isfinite(o.smoothing_mm) && o.smoothing_mm >= 0)) throw InputError("", "--smoothing-mm", "must be >= 0");
-  for (double t : o.thresholds_kpa) check_positive("--thresholds-kpa", t);
-  if (!o.both.empty() && (!o.baseline.empty() || !o.worn.empty()))
-    throw InputError(o.scene, "captures", "give either 'both' or 'baseline' and 'worn', not all three");
-  if (o.both.empty() && (o.baseline.empty() || o.worn.empty()))
-    throw InputError(o.scene, "captures", "a phase is missing: give 'baseline' (not worn) and 'worn', or 'both'",
+  read_scene(o.scene_file, o.scene, o.options);
+  Scene& sc = o.scene;
+  if (sc.outputs.folder.empty()) sc.outputs.folder = (sc.file.parent_path() / "out").string();
+  const CapturesSection& cap = sc.captures;
+  if (cap.both.empty() && (cap.baseline.empty() || cap.worn.empty()))
+    throw InputError(o.scene_file, "captures", "a phase is missing: give 'baseline' (not worn) and 'worn', or 'both'",
                      "see the scene file format in README.md");
   if (!o.quiet) std::cerr << "clearfit assess: loading the part and tracing the refraction map\n";
-  p->part = load_part_scene(o.part, true, std::cerr);
-  p->map = compute_part_map(*p->part, o.part, &p->cache);
+  p->part = load_part_scene(sc, true, std::cerr);
+  p->map = compute_part_map(*p->part, o.cache, &p->cache);
   InverseMapOptions iopt;
-  iopt.texel_mm = o.texel_mm;
+  iopt.texel_mm = sc.outputs.texel_mm;
   iopt.uv_min = p->part->chart->uv_min;
   iopt.uv_max = p->part->chart->uv_max;
   iopt.compute_errors = false;
@@ -192,21 +114,22 @@ std::unique_ptr<Prepared> prepare(AssessOpts& o, const CLI::App& sub) {
   if (!o.quiet)
     std::cerr << "  map: " << p->map.stats.by_status[0] << " pixels see the skin (" << fmt(100 * p->map.stats.coverage)
               << " %), cache " << p->cache << "; chart " << p->inverse.width << " x " << p->inverse.height << " texels of "
-              << fmt(o.texel_mm, 3) << " mm\n";
-  if (!o.calibration.empty()) {
-    p->calibration = read_pressure_calibration(o.calibration);
-    p->notes = check_calibration_matches(*p->calibration, o.person, format_intrinsics_hash(p->part->camera.intrinsics_hash()));
+              << fmt(sc.outputs.texel_mm, 3) << " mm\n";
+  if (!sc.calibration.pressure.empty()) {
+    p->calibration = read_pressure_calibration(sc.calibration.pressure);
+    p->notes = check_calibration_matches(*p->calibration, sc.calibration.person, format_intrinsics_hash(p->part->camera.intrinsics_hash()));
   }
   AssessmentOptions& ao = p->options;
-  ao.window_frames = o.window_frames;
-  ao.compensate_motion = !o.no_motion;
-  ao.max_motion_px = o.max_motion_px;
-  ao.blanching.smoothing_mm = o.smoothing_mm;
-  if (!o.reference_uv.empty()) ao.blanching.reference_uv_mm = Vec2(o.reference_uv[0], o.reference_uv[1]);
-  ao.blanching.reference_radius_mm = o.reference_radius_mm;
-  ao.thresholds_kpa = o.thresholds_kpa;
-  ao.min_hotspot_area_mm2 = o.min_area_mm2;
-  p->sources = {o.baseline, o.worn, o.both};
+  ao.window_frames = cap.window_frames;
+  ao.compensate_motion = cap.motion_compensation;
+  ao.max_motion_px = cap.max_motion_px;
+  const AssessSection& as = sc.assess;
+  ao.blanching.smoothing_mm = as.smoothing_mm;
+  if (!as.reference_uv_mm.empty()) ao.blanching.reference_uv_mm = Vec2(as.reference_uv_mm[0], as.reference_uv_mm[1]);
+  ao.blanching.reference_radius_mm = as.reference_radius_mm;
+  ao.thresholds_kpa = as.thresholds_kpa;
+  ao.min_hotspot_area_mm2 = as.min_hotspot_area_mm2;
+  p->sources = {cap.baseline, cap.worn, cap.both};
   return p;
 }
 
@@ -235,18 +158,18 @@ std::function<void(const std::string&, int, int)> progress_printer(bool quiet) {
 Run add_assess(CLI::App& app) {
   auto o = std::make_shared<AssessOpts>();
   CLI::App* sub = app.add_subcommand("assess", "The fit assessment: where and how hard the part presses, from a not-worn and a worn capture");
-  sub->add_option("scene", o->scene, "Scene file (YAML): part, camera, captures, calibration, outputs")->required();
+  sub->add_option("scene", o->scene_file, "Scene file (YAML): part, camera, captures, calibration, outputs")->required();
   add_assess_options(*sub, *o);
 
-  return [o, sub]() {
+  return [o]() {
     const auto t0 = std::chrono::steady_clock::now();
-    const auto p = prepare(*o, *sub);
-    StagedFolder staged(o->out);
+    const auto p = prepare(*o);
+    const Scene& sc = o->scene;
+    StagedFolder staged(sc.outputs.folder);
     p->options.progress = progress_printer(o->quiet);
     const AssessmentScene scene = p->view();
     const LoadedPart* part = p->part.get();
     const RefractionMap& map = p->map;
-    const SceneFile& sc = p->scene;
     const auto& calibration = p->calibration;
     const Assessment a = assess_captures(scene, p->sources, calibration, p->options);
     if (!o->quiet) std::cerr << "\n";
@@ -254,32 +177,34 @@ Run add_assess(CLI::App& app) {
 
     AssessmentContext ctx;
     ctx.clearfit_version = CLEARFIT_VERSION;
-    ctx.scene = fs::absolute(sc.path).lexically_normal().string();
-    ctx.mesh_name = fs::path(o->part.mesh).filename().string();
-    ctx.ior = o->part.ior;
-    ctx.medium_ior = o->part.medium_ior;
+    ctx.scene = fs::absolute(sc.file).lexically_normal().string();
+    ctx.mesh_name = fs::path(sc.part.mesh).filename().string();
+    ctx.ior = sc.part.indices.n_part;
+    ctx.medium_ior = sc.part.indices.n_medium;
     ctx.fast_path = map.stats.fast_path;
     ctx.chart_method = std::string(to_string(part->chart->method));
     ctx.pose_source = part->pose_source;
-    ctx.camera_source = o->part.camera;
+    ctx.camera_source = sc.part.camera;
     ctx.calibration = calibration ? &*calibration : nullptr;
-    for (auto [role, path] : {std::pair{"scene", o->scene}, {"mesh", o->part.mesh}, {"camera", o->part.camera}, {"pose", o->part.pose},
-                              {"baseline", o->baseline}, {"worn", o->worn}, {"capture", o->both}, {"calibration", o->calibration}})
+    const CapturesSection& cap = sc.captures;
+    for (auto [role, path] : {std::pair{"scene", o->scene_file}, {"mesh", sc.part.mesh}, {"camera", sc.part.camera}, {"pose", sc.part.pose},
+                              {"baseline", cap.baseline}, {"worn", cap.worn}, {"capture", cap.both}, {"calibration", sc.calibration.pressure}})
       if (!path.empty()) ctx.inputs.push_back({role, path, sha256_of_path(path)});
-    ctx.options = {{"ior", o->part.ior},
-                   {"medium_ior", o->part.medium_ior},
-                   {"skin_ior", o->part.skin_ior},
-                   {"normals", o->part.normals},
-                   {"map_mode", o->part.mode},
-                   {"tolerance_um", o->part.tolerance_um},
-                   {"texel_mm", o->texel_mm},
-                   {"window_frames", o->window_frames},
-                   {"motion_compensation", !o->no_motion},
-                   {"max_motion_px", o->max_motion_px},
-                   {"smoothing_mm", o->smoothing_mm},
-                   {"thresholds_kpa", o->thresholds_kpa},
-                   {"min_hotspot_area_mm2", o->min_area_mm2},
-                   {"person", o->person}};
+    const MapOptions& mo = part->map_options;
+    ctx.options = {{"ior", mo.indices.n_part},
+                   {"medium_ior", mo.indices.n_medium},
+                   {"skin_ior", mo.indices.n_skin},
+                   {"normals", mo.normals == MapOptions::Normals::flat ? "flat" : "smooth"},
+                   {"map_mode", mo.mode == MapOptions::Mode::grid ? "grid" : mo.mode == MapOptions::Mode::adaptive ? "adaptive" : "exact"},
+                   {"tolerance_um", mo.tolerance_um},
+                   {"texel_mm", sc.outputs.texel_mm},
+                   {"window_frames", cap.window_frames},
+                   {"motion_compensation", cap.motion_compensation},
+                   {"max_motion_px", cap.max_motion_px},
+                   {"smoothing_mm", sc.assess.smoothing_mm},
+                   {"thresholds_kpa", sc.assess.thresholds_kpa},
+                   {"min_hotspot_area_mm2", sc.assess.min_hotspot_area_mm2},
+                   {"person", sc.calibration.person}};
     for (const auto& n : notes) std::cerr << "clearfit: note: " << n << "\n";
     ctx.run_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
     write_assessment_outputs(a, scene, part->normals, ctx, staged.path());
@@ -312,7 +237,7 @@ Run add_assess(CLI::App& app) {
     }
     for (const auto& w : a.warnings) std::cout << "warning: " << w << "\n";
     if (!html_note.empty()) std::cout << "warning: " << html_note << "\n";
-    const fs::path report = fs::path(o->out) / (o->no_html || !html_note.empty() ? "report.json" : "report.html");
+    const fs::path report = fs::path(sc.outputs.folder) / (o->no_html || !html_note.empty() ? "report.json" : "report.html");
     std::cout << "report: " << fs::absolute(report).lexically_normal().string() << "\n";
     return 0;
   };
@@ -444,13 +369,13 @@ Run add_bench_assess(CLI::App& app) {
   CLI::App* bench = app.get_subcommand("bench");
   CLI::App* sub = bench->add_subcommand("assess", "The assessment's throughput against a bare decode of the same captures, "
                                                   "and its accuracy against a simulation's truth");
-  sub->add_option("scene", o->scene, "Scene file (YAML) with captures")->required();
+  sub->add_option("scene", o->scene_file, "Scene file (YAML) with captures")->required();
   sub->add_option("--truth", *truth, "Folder with truth.json and truth_pressure.npy (clearfit simulate); default: the captures' folder if it has them");
   sub->add_option("--json", *json_out, "Also write the figures as JSON");
   add_assess_options(*sub, *o);
-  return [o, sub, truth, json_out]() {
+  return [o, truth, json_out]() {
     o->quiet = true;
-    const auto p = prepare(*o, *sub);
+    const auto p = prepare(*o);
     // Bare decode of the same captures, then the assessment (map from the cache).
     int frames = 0;
     double decode_s = 0;
@@ -480,7 +405,7 @@ Run add_bench_assess(CLI::App& app) {
     }
     const double range = p->calibration ? std::max(p->calibration->p_max_kpa, 1.0) : 30.0;
     if (!truth_dir.empty()) r["accuracy"] = accuracy_against_truth(a, truth_dir, range);
-    std::cout << "clearfit bench assess: " << fs::path(o->scene).filename().string() << " (" << cam.width << "x" << cam.height << ", "
+    std::cout << "clearfit bench assess: " << fs::path(o->scene_file).filename().string() << " (" << cam.width << "x" << cam.height << ", "
               << frames << " frames)\n";
     std::cout << "  bare decode        " << fmt(frames / decode_s, 1) << " frames/s\n";
     std::cout << "  whole assessment   " << fmt(frames / assess_s, 1) << " frames/s = " << fmt(100 * decode_s / assess_s, 0)

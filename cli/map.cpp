@@ -47,55 +47,46 @@ nlohmann::json stats_json(const RefractionMap& map, const std::string& mesh, con
 
 Run add_map(CLI::App& app) {
   struct Opts {
-    std::string scene, out, stats, inverse;
-    double texel_mm = 0.05;
-    PartOptions part;
+    std::string scene_file;
+    Scene scene;
+    SceneFields::Options options;
+    CacheOptions cache;
   };
   auto o = std::make_shared<Opts>();
   CLI::App* sub = app.add_subcommand("map", "Refraction map: for every camera pixel, the skin point it sees through the part");
-  sub->add_option("--scene", o->scene, "Scene file (YAML) giving any of the options below; the command line wins");
-  add_part_options(*sub, o->part);
-  sub->add_option("--out", o->out, "Output MAP.npy: float32 H x W x 3 skin points (part frame, mm), NaN where invalid");
-  sub->add_option("--stats", o->stats, "Output STATS.json: coverage, invalid pixels by reason, fast path, timings");
-  sub->add_option("--inverse", o->inverse, "Output INV.npy: the inverse map for cv::remap, float32 T_h x T_w x 2 camera pixels per chart texel, NaN where invalid");
-  sub->add_option("--texel-mm", o->texel_mm, "Texel size of the inverse map on the chart, mm")->capture_default_str();
+  sub->add_option("--scene", o->scene_file, "Scene file (YAML) giving any of the options below; the command line wins");
+  o->options = add_scene_options(*sub, o->scene, {"", "contact", "map", "outputs.map", "outputs.stats", "outputs.inverse", "outputs.texel_mm"});
+  add_cache_options(*sub, o->cache);
 
-  return [o, sub]() {
-    if (!o->scene.empty()) {
-      // Scene values fill what the command line did not give.
-      const SceneFile sc = read_scene(o->scene);
-      take_scene_part_options(sc, *sub, o->part);
-      auto take = [&](const char* option, auto& field, const auto& value) { take_from_scene(*sub, option, field, value); };
-      take("--out", o->out, sc.out_map);
-      take("--stats", o->stats, sc.out_stats);
-      take("--inverse", o->inverse, sc.out_inverse);
-      take("--texel-mm", o->texel_mm, sc.texel_mm);
+  return [o]() {
+    const OutputsSection& out = o->scene.outputs;
+    if (!o->scene_file.empty()) {
+      read_scene(o->scene_file, o->scene, o->options);
       // The scene's output folders are created (nothing is written into them yet).
-      for (const auto& out : {sc.out_map, sc.out_stats, sc.out_inverse})
-        if (out && !std::filesystem::path(*out).parent_path().empty())
-          std::filesystem::create_directories(std::filesystem::path(*out).parent_path());
+      for (const auto& [key, path] : {std::pair{"outputs.map", out.map}, {"outputs.stats", out.stats}, {"outputs.inverse", out.inverse}})
+        if (!path.empty() && !given_on_command_line(o->options, key) && !std::filesystem::path(path).parent_path().empty())
+          std::filesystem::create_directories(std::filesystem::path(path).parent_path());
+    } else {
+      check_scene(o->scene, o->options);
     }
-    if (o->out.empty())
+    if (out.map.empty())
       throw InputError("", "--out", "is required", "give it on the command line or as 'outputs.map' in a --scene file");
-    if (!(std::isfinite(o->texel_mm) && o->texel_mm > 0))
-      throw InputError("", "--texel-mm", "must be a positive length in mm");
-    check_part_options(o->part);
     // Output folders are checked before the work, so a bad path fails fast and leaves nothing.
-    for (const std::string& out : {o->out, o->stats, o->inverse})
-      if (!out.empty()) {
-        const auto parent = std::filesystem::path(out).parent_path();
+    for (const std::string& path : {out.map, out.stats, out.inverse})
+      if (!path.empty()) {
+        const auto parent = std::filesystem::path(path).parent_path();
         if (!parent.empty() && !std::filesystem::is_directory(parent))
-          throw InputError(out, "", "the folder " + parent.string() + " does not exist", "create it first");
+          throw InputError(path, "", "the folder " + parent.string() + " does not exist", "create it first");
       }
-    const auto part = load_part_scene(o->part, !o->inverse.empty(), std::cerr);
+    const auto part = load_part_scene(o->scene, !out.inverse.empty(), std::cerr);
     std::string cache;
-    const RefractionMap map = compute_part_map(*part, o->part, &cache);
+    const RefractionMap map = compute_part_map(*part, o->cache, &cache);
     const bool hit = cache == "hit";
-    nlohmann::json stats = stats_json(map, o->part.mesh, o->part.camera, part->map_options, cache);
+    nlohmann::json stats = stats_json(map, o->scene.part.mesh, o->scene.part.camera, part->map_options, cache);
     std::optional<InverseMap> inverse;
-    if (!o->inverse.empty()) {
+    if (!out.inverse.empty()) {
       InverseMapOptions iopt;
-      iopt.texel_mm = o->texel_mm;
+      iopt.texel_mm = out.texel_mm;
       inverse = compute_inverse_map(map, iopt, &part->contact);
       const InverseMap& inv = *inverse;
       stats["inverse"] = {{"width", inv.width},
@@ -110,13 +101,13 @@ Run add_map(CLI::App& app) {
     // All outputs or none: a failure removes what this run already wrote.
     std::vector<std::string> written;
     try {
-      write_skin_points_npy(map, o->out);
-      written.push_back(o->out);
+      write_skin_points_npy(map, out.map);
+      written.push_back(out.map);
       if (inverse) {
-        write_inverse_map_npy(*inverse, o->inverse);
-        written.push_back(o->inverse);
+        write_inverse_map_npy(*inverse, out.inverse);
+        written.push_back(out.inverse);
       }
-      if (!o->stats.empty()) write_file_atomically(o->stats, stats.dump(2) + "\n");
+      if (!out.stats.empty()) write_file_atomically(out.stats, stats.dump(2) + "\n");
     } catch (...) {
       std::error_code ignored;
       for (const auto& w : written) std::filesystem::remove(w, ignored);
@@ -132,7 +123,7 @@ Run add_map(CLI::App& app) {
     if (inverse)
       std::cout << "inverse map " << inverse->width << " x " << inverse->height << " texels of " << inverse->texel_mm
                 << " mm, " << inverse->error.texels_valid << " valid; round trip max " << inverse->error.max_px << " px\n";
-    std::cout << "wrote " << o->out << (inverse ? ", " + o->inverse : "") << (o->stats.empty() ? "" : ", " + o->stats) << "\n";
+    std::cout << "wrote " << out.map << (inverse ? ", " + out.inverse : "") << (out.stats.empty() ? "" : ", " + out.stats) << "\n";
     return 0;
   };
 }

@@ -1,7 +1,9 @@
 #pragma once
-// Options shared by the subcommands that read a part: mesh units and the
-// contact-surface selection.
-#include <CLI/CLI.hpp>
+// Helpers shared by the subcommands that read a part: the mesh with its units,
+// the contact-surface selection, the chart method (the values come from the
+// scene's sections, scene.hpp).
+#include "scene.hpp"
+
 #include <clearfit/geometry/chart.hpp>
 #include <clearfit/geometry/contact.hpp>
 #include <clearfit/geometry/import.hpp>
@@ -10,21 +12,10 @@
 
 namespace clearfit::cli {
 
-struct MeshOptions {
-  std::string units;   ///< empty: the file's own unit (mm for STL/OBJ/PLY/OFF)
-};
-struct ContactOptions {
-  std::string group, faces_file;
-  std::vector<double> normal;
-  double angle_deg = 30.0;
-};
-
-void add_mesh_options(CLI::App& app, MeshOptions& o);
-void add_contact_options(CLI::App& app, ContactOptions& o);
-/// Loads the mesh with the units option; throws InputError on bad input.
-Mesh load_part(const std::string& path, const MeshOptions& o);
-/// nullopt when no contact option was given.
-std::optional<ContactSelector> make_contact_selector(const ContactOptions& o);
+/// Loads the mesh in `units` (empty: the file's own); throws InputError on bad input.
+Mesh load_part(const std::string& path, const std::string& units);
+/// nullopt when no contact surface was given.
+std::optional<ContactSelector> make_contact_selector(const ContactSection& c);
 ChartMethod parse_chart_method(const std::string& name);
 
 }  // namespace clearfit::cli

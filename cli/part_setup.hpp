@@ -1,8 +1,8 @@
 #pragma once
 // What every command that traces the part needs (map, simulate, assess): the
 // part, its contact surface, the camera and pose, the indices and the map
-// options — as command-line options, filled from a scene file where the
-// command line is silent — and the loaded, ready-to-trace scene.
+// options (the scene's top-level keys and map section, scene.hpp) loaded into
+// a ready-to-trace part, and its refraction map through the cache.
 #include "options.hpp"
 #include "scene.hpp"
 
@@ -17,30 +17,18 @@
 
 namespace clearfit::cli {
 
-struct PartOptions {
-  std::string mesh, camera, pose, normals = "smooth", mode = "exact", chart = "auto", cache;
-  int grid_step = 32;
-  double tolerance_um = 1.0;
-  bool no_cache = false, exact_reasons = false;
-  MeshOptions mesh_opt;
-  ContactOptions contact;
-  double ior = 1.49, medium_ior = 1.0, skin_ior = 1.4;
+/// The map cache: command-line only (not a scene key).
+struct CacheOptions {
+  std::string folder;  ///< empty: $XDG_CACHE_HOME/clearfit or ~/.cache/clearfit
+  bool off = false;
 };
 
-/// Sets `field` from a scene value when the command line did not give `option`.
-template <class T, class V>
-void take_from_scene(const CLI::App& sub, const char* option, T& field, const std::optional<V>& value) {
-  if (value && sub.count(option) == 0) field = *value;
-}
-
-/// Registers --mesh --units --contact-* --camera --pose --ior --medium-ior
-/// --skin-ior --normals --mode --grid-step --tolerance-um --chart --cache --no-cache.
-void add_part_options(CLI::App& sub, PartOptions& o);
-/// Fills the options the command line did not give from the scene file, and
-/// checks the scene's enumerated values (InputError naming the key).
-void take_scene_part_options(const SceneFile& scene, const CLI::App& sub, PartOptions& o);
-/// Checks required options and value ranges (InputError naming the option).
-void check_part_options(const PartOptions& o);
+/// The scene keys every command that traces the part shows as options:
+/// --mesh --units --camera --pose --ior --medium-ior --skin-ior --contact-*
+/// --normals --mode --grid-step --tolerance-um --exact-reasons --chart.
+inline const std::vector<std::string> kPartKeys{"", "contact", "map"};
+/// Registers --cache and --no-cache.
+void add_cache_options(CLI::App& sub, CacheOptions& o);
 
 /// A part ready to trace. Not copyable: the ray index points into the mesh.
 struct LoadedPart {
@@ -48,7 +36,8 @@ struct LoadedPart {
   ContactSurface contact;
   CameraModel camera;
   Rigid3 cam_from_part;
-  std::string pose_source;  ///< where cam_from_part came from
+  std::string pose_source;    ///< where cam_from_part came from
+  std::string camera_source;  ///< the camera model's file
   std::optional<Chart> chart;
   CornerNormals normals;
   std::unique_ptr<RayIndex> index;
@@ -63,11 +52,12 @@ struct LoadedPart {
 /// surface, reads the camera and pose, charts the contact surface when
 /// `need_chart` (InputError if it cannot be charted) or when the map mode
 /// interpolates (a warning on `log` if it cannot), builds the ray index.
-std::unique_ptr<LoadedPart> load_part_scene(const PartOptions& o, bool need_chart, std::ostream& log);
+/// InputError when the mesh or the camera is not given.
+std::unique_ptr<LoadedPart> load_part_scene(const Scene& scene, bool need_chart, std::ostream& log);
 
-/// The refraction map through the cache (PartOptions::cache / no_cache);
+/// The refraction map through the cache;
 /// InputError naming the pose when no pixel sees the contact surface.
 /// `*cache_state` (optional): "hit", "miss" or "off".
-RefractionMap compute_part_map(const LoadedPart& part, const PartOptions& o, std::string* cache_state = nullptr);
+RefractionMap compute_part_map(const LoadedPart& part, const CacheOptions& cache, std::string* cache_state = nullptr);
 
 }  // namespace clearfit::cli

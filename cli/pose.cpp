@@ -20,7 +20,8 @@ Run add_pose(CLI::App& app) {
   struct Opts {
     std::string camera, layout, out, write_camera, report, mesh;
     std::vector<std::string> images;
-    MeshOptions mesh_opt;
+    Scene scene;  // --units, as the scene file names it
+    SceneFields::Options options;
     DetectOptions detect;
   };
   auto o = std::make_shared<Opts>();
@@ -37,11 +38,12 @@ Run add_pose(CLI::App& app) {
   sub->add_option("--report", o->report, "JSON report: pose, RMS, uncertainty, tags used, notes");
   sub->add_option("--mesh", o->mesh,
                   "The part's mesh: refuse tags the camera sees through the part (refraction)");
-  add_mesh_options(*sub, o->mesh_opt);
+  o->options = add_scene_options(*sub, o->scene, {"units"});
   sub->add_option("--decimate", o->detect.quad_decimate, "AprilTag quad_decimate")
       ->capture_default_str()
       ->check(CLI::Range(1.0, 8.0));
   return [o]() {
+    check_scene(o->scene, o->options);
     const CameraModel camera = read_cameramodel(o->camera);
     const TagLayout layout = read_tag_layout(o->layout);
     std::vector<std::filesystem::path> inputs(o->images.begin(), o->images.end());
@@ -63,7 +65,7 @@ Run add_pose(CLI::App& app) {
     }
     const PartPose pose = solve_part_pose(camera, layout, detections);
     if (!o->mesh.empty()) {
-      const Mesh mesh = load_part(o->mesh, o->mesh_opt);
+      const Mesh mesh = load_part(o->mesh, o->scene.part.units);
       const auto index = make_ray_index(mesh);
       const std::vector<int> through = tags_seen_through_part(*index, pose, layout);
       if (!through.empty()) {

@@ -1,13 +1,278 @@
+// The scene file: its sections' keys (bind), their rules (validate), and the
+// one place the file is read (read_scene). See the comment in scene.hpp.
 #include "scene.hpp"
 
 #include <clearfit/error.hpp>
-#include <yaml-cpp/yaml.h>
+#include <clearfit/geometry/import.hpp>
 
-#include <set>
+#include <cmath>
+#include <sstream>
 
 namespace clearfit::cli {
 
-SceneFile read_scene(const std::filesystem::path& file) {
+// ---- SceneReader -----------------------------------------------------------
+
+void SceneReader::fail(const YAML::Node& node, const std::string& key, const std::string& problem) const {
+  const std::string where = (node.Mark().line >= 0 ? "line " + std::to_string(node.Mark().line + 1) + ", " : "") + "key '" + key + "'";
+  throw InputError(file_.string(), where, problem, "see the scene file format in README.md");
+}
+
+void SceneReader::only_keys(const YAML::Node& map, const std::string& prefix, const std::set<std::string>& allowed) const {
+  if (!map.IsMap()) fail(map, prefix, "expected a mapping of keys to values");
+  for (const auto& kv : map) {
+    const auto key = kv.first.as<std::string>();
+    if (!allowed.count(key)) {
+      std::string list;
+      for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
+      fail(kv.first, prefix.empty() ? key : prefix + "." + key, "unknown key (expected one of: " + list + ")");
+    }
+  }
+}
+
+std::optional<std::string> SceneReader::path(const YAML::Node& map, const std::string& key, const std::string& full) const {
+  auto s = get<std::string>(map, key, full, "a file path");
+  if (!s) return s;
+  std::filesystem::path p(*s);
+  return (p.is_absolute() ? p : file_.parent_path() / p).lexically_normal().string();
+}
+
+std::vector<double> SceneReader::numbers(const YAML::Node& n, const std::string& full, std::size_t count) const {
+  if (!n.IsSequence() || (count && n.size() != count) || n.size() == 0)
+    fail(n, full, count ? "expected a list of " + std::to_string(count) + " numbers" : "expected a list of numbers");
+  std::vector<double> v;
+  for (const auto& e : n) {
+    try {
+      v.push_back(e.as<double>());
+    } catch (const YAML::Exception&) {
+      fail(e, full, "expected a number, got '" + (e.IsScalar() ? e.Scalar() : std::string("a list or map")) + "'");
+    }
+    if (!std::isfinite(v.back())) fail(e, full, "expected a finite number");
+  }
+  return v;
+}
+
+// ---- SceneFields -----------------------------------------------------------
+
+SceneFields::SceneFields(CLI::App& app, Options& options, std::vector<std::string> show)
+    : app_(&app), writable_(&options), options_(&options), show_(std::move(show)) {}
+
+SceneFields::SceneFields(const YAML::Node& node, const SceneReader& reader, const Options& options, std::string prefix)
+    : options_(&options), node_(node), reader_(&reader), prefix_(std::move(prefix)) {}
+
+bool SceneFields::shown(const std::string& k) const {
+  for (const std::string& s : show_)
+    if (s.empty() ? k.find('.') == std::string::npos : k == s || k.rfind(s + ".", 0) == 0) return true;
+  return false;
+}
+
+bool SceneFields::given(const std::string& k) const {
+  const auto it = options_->find(k);
+  return it != options_->end() && it->second->count() > 0;
+}
+
+std::optional<YAML::Node> SceneFields::take(const std::string& name) {
+  named_.insert(name);
+  const YAML::Node n = node_[name];
+  if (!n || given(full(name)) || ignored_.count(name)) return std::nullopt;
+  return n;
+}
+
+void SceneFields::path(const std::string& name, std::string& value, const char* option, const std::string& help) {
+  const std::string k = full(name);
+  if (reading()) {
+    if (take(name)) value = *reader_->path(node_, name, k);
+  } else if (option && shown(k)) {
+    registered(k, app_->add_option(option, value, help));
+  }
+}
+
+void SceneFields::numbers(const std::string& name, std::vector<double>& value, std::size_t count, const char* option,
+                          const std::string& help) {
+  const std::string k = full(name);
+  if (reading()) {
+    if (const auto n = take(name)) value = reader_->numbers(*n, k, count);
+  } else if (option && shown(k)) {
+    CLI::Option* o = app_->add_option(option, value, help)->delimiter(',');
+    if (count) o->expected(static_cast<int>(count));
+    else o->capture_default_str();
+    registered(k, o);
+  }
+}
+
+void SceneFields::alternatives(const std::vector<std::string>& names) {
+  if (reading()) {
+    for (const auto& n : names)
+      if (given(full(n))) ignored_.insert(names.begin(), names.end());
+    return;
+  }
+  for (const auto& a : names)
+    for (const auto& b : names)
+      if (a < b && writable_->count(full(a)) && writable_->count(full(b))) (*writable_)[full(a)]->excludes((*writable_)[full(b)]);
+}
+
+void SceneFields::custom(const std::string& name,
+                         const std::function<void(const YAML::Node&, const SceneReader&, const std::string&)>& read) {
+  if (!reading()) return;
+  named_.insert(name);
+  if (const YAML::Node n = node_[name]) read(n, *reader_, full(name));
+}
+
+void SceneFields::finish() const { reader_->only_keys(node_, prefix_, named_); }
+
+// ---- the sections ----------------------------------------------------------
+
+void ContactSection::bind(SceneFields& f) {
+  f.key("group", group, "--contact-group", "Contact surface: a group or object name (OBJ g/o, 3MF, glTF)");
+  f.path("faces", faces, "--contact-faces", "Contact surface: a file of 0-based face indices in file order");
+  f.numbers("normal", normal, 3, "--contact-normal",
+            "Contact surface: faces whose outward normal is within --contact-angle of x,y,z (part frame)");
+  f.alternatives({"group", "faces", "normal"});
+  f.key("angle_deg", angle_deg, "--contact-angle", "Cone half-angle for --contact-normal, degrees");
+}
+
+void ContactSection::validate() const {
+  if (!(std::isfinite(angle_deg) && angle_deg > 0 && angle_deg <= 180))
+    rule_broken("angle_deg", angle_deg, "a cone half-angle in (0, 180] degrees");
+}
+
+void PartSection::bind(SceneFields& f) {
+  f.path("mesh", mesh, "--mesh", "Part mesh (.stl .obj .ply .off .3mf .gltf .glb)");
+  f.key("units", units, "--units", "Unit of the mesh file's numbers: um, mm, cm, m, in, ft (default: mm, or the file's own for 3MF/glTF)");
+  f.path("camera", camera, "--camera", "Camera model (mrcal .cameramodel)");
+  f.path("pose", pose, "--pose", "Pose file (clearfit.pose/1 JSON) with cam_from_part; default: the cameramodel's extrinsics");
+  f.key("ior", indices.n_part, "--ior", "Index of refraction of the part");
+  f.key("medium_ior", indices.n_medium, "--medium-ior", "Index of the camera-side medium (air 1.0, water 1.333, oil ~1.5)");
+  f.key("skin_ior", indices.n_skin, "--skin-ior", "Index beyond the contact surface (skin)");
+  f.section("contact", contact);
+}
+
+void PartSection::validate() const {
+  if (!units.empty() && !parse_length_unit(units)) rule_broken("units", units, "one of um, mm, cm, m, in, ft");
+  for (auto [key, value] : {std::pair{"ior", indices.n_part}, {"medium_ior", indices.n_medium}, {"skin_ior", indices.n_skin}})
+    if (!(std::isfinite(value) && value >= 1.0))
+      rule_broken(key, value, "a finite index of refraction >= 1 (air 1.0, water 1.333, acrylic 1.49, clear resins 1.49-1.55)");
+  try {
+    contact.validate();
+  } catch (const SceneRuleError& e) {
+    throw SceneRuleError("contact." + e.key, e.what());
+  }
+}
+
+void MapSection::bind(SceneFields& f) {
+  using N = MapOptions::Normals;
+  using M = MapOptions::Mode;
+  f.choice("normals", options.normals, {{"smooth", N::smooth}, {"flat", N::flat}}, "--normals", "Shading normals at the surfaces");
+  f.choice("mode", options.mode, {{"exact", M::exact}, {"grid", M::grid}, {"adaptive", M::adaptive}}, "--mode",
+           "exact: every pixel traced; grid: cells of --grid-step px interpolated; adaptive: cells refined until within --tolerance-um");
+  f.key("grid_step", options.grid_step, "--grid-step", "Starting cell size for grid/adaptive, pixels (power of two, 2..256)");
+  f.key("tolerance_um", options.tolerance_um, "--tolerance-um", "Adaptive: accepted interpolation error on the skin, micrometres");
+  f.key("exact_reasons", options.exact_reasons, "--exact-reasons",
+        "Grid/adaptive: resolve boundaries between two invalid reasons pixel by pixel too (default: validity "
+        "boundaries only; elsewhere a pixel takes its nearest traced node's reason)");
+  f.choice<std::string>("chart", chart, {{"auto", "auto"}, {"planar", "planar"}, {"lscm", "lscm"}, {"arap", "arap"}, {"none", "none"}},
+                        "--chart", "Chart of the contact surface used for interpolation (none: interpolate in 3D)");
+}
+
+void MapSection::validate() const {
+  const int s = options.grid_step;
+  if (s < 2 || s > 256 || (s & (s - 1)) != 0) rule_broken("grid_step", s, "a power of two from 2 to 256");
+  if (!(std::isfinite(options.tolerance_um) && options.tolerance_um > 0))
+    rule_broken("tolerance_um", options.tolerance_um, "a positive number of micrometres");
+}
+
+void OutputsSection::bind(SceneFields& f) {
+  f.path("map", map, "--out", "Output MAP.npy: float32 H x W x 3 skin points (part frame, mm), NaN where invalid");
+  f.path("stats", stats, "--stats", "Output STATS.json: coverage, invalid pixels by reason, fast path, timings");
+  f.path("inverse", inverse, "--inverse",
+         "Output INV.npy: the inverse map for cv::remap, float32 T_h x T_w x 2 camera pixels per chart texel, NaN where invalid");
+  f.path("folder", folder, "--out", "Output folder (default: the scene's outputs.folder, else out/ beside the scene)");
+  f.key("texel_mm", texel_mm, "--texel-mm", "Texel size of the chart grid (the inverse map, the assessment), mm");
+}
+
+void OutputsSection::validate() const {
+  if (!(std::isfinite(texel_mm) && texel_mm > 0)) rule_broken("texel_mm", texel_mm, "a positive length in mm");
+}
+
+void CapturesSection::bind(SceneFields& f) {
+  f.path("baseline", baseline, "--baseline", "Not-worn capture: a video or a folder of images");
+  f.path("worn", worn, "--worn", "Worn capture: a video or a folder of images");
+  f.path("both", both, "--both", "One capture holding the baseline and then the press (split automatically)");
+  f.key("window_frames", window_frames, "--window-frames", "Frames averaged per phase");
+  f.key("max_motion_px", max_motion_px, "--max-motion-px", "Motion beyond this is refused, px");
+  f.key("motion_compensation", motion_compensation, "--no-motion-compensation", "Do not measure or undo motion between frames");
+}
+
+void CapturesSection::validate() const {
+  if (window_frames < 1) rule_broken("window_frames", window_frames, "at least 1 frame");
+  if (!(std::isfinite(max_motion_px) && max_motion_px > 0)) rule_broken("max_motion_px", max_motion_px, "a positive number of pixels");
+  if (!both.empty() && (!baseline.empty() || !worn.empty()))
+    throw SceneRuleError("both", "give either 'both' or 'baseline' and 'worn', not all three");
+}
+
+void CalibrationSection::bind(SceneFields& f) {
+  f.path("pressure", pressure, "--calibration", "Per-person pressure calibration (from clearfit calibrate-pressure)");
+  f.key("person", person, "--person", "Who wears the part (checked against the calibration)");
+}
+
+void AssessSection::bind(SceneFields& f) {
+  f.key("smoothing_mm", smoothing_mm, "--smoothing-mm", "Gaussian smoothing of the signal on the chart, mm");
+  f.numbers("thresholds_kpa", thresholds_kpa, 0, "--thresholds-kpa", "Hotspot thresholds, kPa");
+  f.numbers("reference_uv_mm", reference_uv_mm, 2, "--reference-uv-mm",
+            "Centre u,v (chart mm) of an unpressed reference disk (default: automatic)");
+  f.key("reference_radius_mm", reference_radius_mm, "--reference-radius-mm", "Radius of the reference disk, mm");
+  f.key("min_hotspot_area_mm2", min_hotspot_area_mm2, "--min-hotspot-area-mm2", "Smaller hotspots are dropped, mm²");
+}
+
+void AssessSection::validate() const {
+  if (!(std::isfinite(smoothing_mm) && smoothing_mm >= 0)) rule_broken("smoothing_mm", smoothing_mm, ">= 0 mm");
+  for (double t : thresholds_kpa)
+    if (!(std::isfinite(t) && t > 0)) rule_broken("thresholds_kpa", t, "positive pressures in kPa");
+  if (!(std::isfinite(reference_radius_mm) && reference_radius_mm > 0))
+    rule_broken("reference_radius_mm", reference_radius_mm, "a positive length in mm");
+  if (!(std::isfinite(min_hotspot_area_mm2) && min_hotspot_area_mm2 > 0))
+    rule_broken("min_hotspot_area_mm2", min_hotspot_area_mm2, "a positive area in mm²");
+}
+
+// ---- the whole file --------------------------------------------------------
+
+void Scene::bind(SceneFields& f) {
+  part.bind(f);
+  f.section("map", map);
+  f.section("outputs", outputs);
+  f.section("captures", captures);
+  f.section("calibration", calibration);
+  f.section("assess", assess);
+  f.custom("simulation", [this](const YAML::Node& n, const SceneReader& r, const std::string&) {
+    simulation.emplace();
+    simulation->read(n, r);
+  });
+}
+
+void Scene::validate() const {
+  auto check = [](const char* section, const auto& s) {
+    try {
+      s.validate();
+    } catch (const SceneRuleError& e) {
+      throw SceneRuleError(*section && !e.key.empty() ? std::string(section) + "." + e.key : *section ? section : e.key, e.what());
+    }
+  };
+  check("", part);
+  check("map", map);
+  check("outputs", outputs);
+  check("captures", captures);
+  check("calibration", calibration);
+  check("assess", assess);
+  if (simulation) check("simulation", *simulation);
+}
+
+SceneFields::Options add_scene_options(CLI::App& sub, Scene& scene, const std::vector<std::string>& show) {
+  SceneFields::Options options;
+  SceneFields f(sub, options, show);
+  scene.bind(f);
+  return options;
+}
+
+void read_scene(const std::filesystem::path& file, Scene& scene, const SceneFields::Options& options) {
   if (std::filesystem::is_directory(file)) throw InputError(file.string(), "", "is a directory, expected a scene file (YAML)");
   if (!std::filesystem::exists(file)) throw InputError(file.string(), "", "scene file not found");
   YAML::Node root;
@@ -19,56 +284,31 @@ SceneFile read_scene(const std::filesystem::path& file) {
   } catch (const YAML::Exception& e) {
     throw InputError(file.string(), "", std::string("cannot read the scene file: ") + e.what());
   }
-  SceneReader r(file);
-  SceneFile s;
-  s.path = file;
   if (!root || root.IsNull()) throw InputError(file.string(), "", "is empty", "see the scene file format in README.md");
-  r.only_keys(root, "", {"mesh", "units", "ior", "medium_ior", "skin_ior", "contact", "camera", "pose", "map", "outputs",
-                    "captures", "calibration", "assess", "simulation"});
-  s.root = root;
-  s.mesh = r.path(root, "mesh", "mesh");
-  s.units = r.get<std::string>(root, "units", "units", "a unit (um, mm, cm, m, in, ft)");
-  s.camera = r.path(root, "camera", "camera");
-  s.pose = r.path(root, "pose", "pose");
-  s.ior = r.get<double>(root, "ior", "ior", "a number");
-  s.medium_ior = r.get<double>(root, "medium_ior", "medium_ior", "a number");
-  s.skin_ior = r.get<double>(root, "skin_ior", "skin_ior", "a number");
-  if (const YAML::Node c = root["contact"]) {
-    r.only_keys(c, "contact", {"group", "faces", "normal", "angle_deg"});
-    s.contact_group = r.get<std::string>(c, "group", "contact.group", "a group name");
-    s.contact_faces = r.path(c, "faces", "contact.faces");
-    s.contact_angle_deg = r.get<double>(c, "angle_deg", "contact.angle_deg", "a number of degrees");
-    if (const YAML::Node n = c["normal"]) {
-      if (!n.IsSequence() || n.size() != 3) r.fail(n, "contact.normal", "expected three numbers [x, y, z]");
-      std::vector<double> v;
-      for (const auto& e : n) {
-        try {
-          v.push_back(e.as<double>());
-        } catch (const YAML::Exception&) {
-          r.fail(e, "contact.normal", "expected a number, got '" + e.Scalar() + "'");
-        }
-      }
-      s.contact_normal = v;
-    }
+  const SceneReader reader(file);
+  if (!root.IsMap()) reader.fail(root, "", "expected a mapping of keys to values");
+  scene.file = file;
+  SceneFields f(root, reader, options);
+  scene.bind(f);
+  f.finish();
+  check_scene(scene, options);
+}
+
+void check_scene(const Scene& scene, const SceneFields::Options& options) {
+  try {
+    scene.validate();
+  } catch (const SceneRuleError& e) {
+    const auto it = options.find(e.key);
+    if (it != options.end() && (it->second->count() > 0 || scene.file.empty()))
+      throw InputError("", it->second->get_name(), e.what());
+    if (!scene.file.empty()) throw InputError(scene.file.string(), "key '" + e.key + "'", e.what(), "see the scene file format in README.md");
+    throw InputError("", e.key, e.what());
   }
-  if (const YAML::Node m = root["map"]) {
-    r.only_keys(m, "map", {"normals", "mode", "grid_step", "tolerance_um", "chart", "exact_reasons"});
-    s.normals = r.get<std::string>(m, "normals", "map.normals", "smooth or flat");
-    s.mode = r.get<std::string>(m, "mode", "map.mode", "exact, grid or adaptive");
-    s.chart = r.get<std::string>(m, "chart", "map.chart", "auto, planar, lscm, arap or none");
-    s.grid_step = r.get<int>(m, "grid_step", "map.grid_step", "a whole number of pixels");
-    s.tolerance_um = r.get<double>(m, "tolerance_um", "map.tolerance_um", "a number of micrometres");
-    s.exact_reasons = r.get<bool>(m, "exact_reasons", "map.exact_reasons", "true or false");
-  }
-  if (const YAML::Node o = root["outputs"]) {
-    r.only_keys(o, "outputs", {"map", "stats", "inverse", "texel_mm", "folder"});
-    s.out_folder = r.path(o, "folder", "outputs.folder");
-    s.out_inverse = r.path(o, "inverse", "outputs.inverse");
-    s.texel_mm = r.get<double>(o, "texel_mm", "outputs.texel_mm", "a length in mm");
-    s.out_map = r.path(o, "map", "outputs.map");
-    s.out_stats = r.path(o, "stats", "outputs.stats");
-  }
-  return s;
+}
+
+bool given_on_command_line(const SceneFields::Options& options, const std::string& key) {
+  const auto it = options.find(key);
+  return it != options.end() && it->second->count() > 0;
 }
 
 }  // namespace clearfit::cli

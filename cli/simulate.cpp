@@ -2,7 +2,6 @@
 // worn videos), their ground truth, and calibration presses, from the scene
 // file's common keys and its `simulation:` section.
 #include "commands.hpp"
-#include "options.hpp"
 #include "part_setup.hpp"
 #include "scene.hpp"
 #include "simulate_photometric.hpp"
@@ -22,214 +21,6 @@ namespace clearfit::cli {
 
 namespace {
 
-// Everything `simulation:` can set.
-struct SimulationSpec {
-  std::uint64_t seed = 1;
-  std::string out;
-  sim::VideoFormat format = sim::VideoFormat::huffyuv;
-  double scale = 1.0;
-  sim::Timeline timeline;
-  SkinParameters skin;
-  sim::CameraSettings camera;
-  sim::PressureFieldSpec field;
-  std::optional<std::string> pressure_map;
-  std::optional<sim::PressOptions> presses;
-  sim::PhotometricEffects photometric;  ///< glare, exposure steps and drifts, flicker drift
-};
-
-class SimulationParser {
- public:
-  explicit SimulationParser(const SceneReader& r) : r_(r) {}
-
-  SimulationSpec parse(const YAML::Node& s) {
-    SimulationSpec o;
-    r_.only_keys(s, "simulation", {"seed", "out", "format", "scale", "timeline", "skin", "camera", "flicker", "motion", "pressure", "presses",
-                                   "glare", "exposure"});
-    if (auto v = r_.get<long long>(s, "seed", "simulation.seed", "a whole number")) {
-      if (*v < 0) r_.fail(s["seed"], "simulation.seed", "expected a number >= 0");
-      o.seed = static_cast<std::uint64_t>(*v);
-    }
-    if (auto v = r_.path(s, "out", "simulation.out")) o.out = *v;
-    if (auto v = r_.get<std::string>(s, "format", "simulation.format", "ffv1, huffyuv, mjpg or png")) {
-      try {
-        o.format = sim::parse_video_format(*v);
-      } catch (const std::invalid_argument&) {
-        r_.fail(s["format"], "simulation.format", "expected ffv1, huffyuv, mjpg or png, got '" + *v + "'");
-      }
-    }
-    num(s, "scale", "simulation.scale", o.scale, 0.05, 4);
-    if (const YAML::Node t = s["timeline"]) {
-      r_.only_keys(t, "simulation.timeline", {"fps", "baseline_s", "press_s", "single_video"});
-      num(t, "fps", "simulation.timeline.fps", o.timeline.fps, 1, 1000);
-      num(t, "baseline_s", "simulation.timeline.baseline_s", o.timeline.baseline_s, 1e-3, 600);
-      num(t, "press_s", "simulation.timeline.press_s", o.timeline.press_s, 1e-3, 600);
-      if (auto v = r_.get<bool>(t, "single_video", "simulation.timeline.single_video", "true or false")) o.timeline.single_video = *v;
-    }
-    if (const YAML::Node k = s["skin"]) parse_skin(k, o.skin);
-    if (const YAML::Node c = s["camera"]) {
-      const std::string p = "simulation.camera";
-      r_.only_keys(c, p, {"exposure", "full_well_e", "read_noise_e", "falloff", "specular_peak", "specular_center",
-                          "specular_sigma", "background", "supersample", "texture_mm"});
-      auto& cam = o.camera;
-      num(c, "exposure", p + ".exposure", cam.exposure, 1e-3, 100);
-      num(c, "full_well_e", p + ".full_well_e", cam.full_well_e, 1, 1e9);
-      num(c, "read_noise_e", p + ".read_noise_e", cam.read_noise_e, 0, 1e4);
-      num(c, "falloff", p + ".falloff", cam.falloff, 0, 0.99);
-      num(c, "specular_peak", p + ".specular_peak", cam.specular_peak, 0, 10);
-      if (c["specular_center"]) cam.specular_center = vec2(c["specular_center"], p + ".specular_center");
-      num(c, "specular_sigma", p + ".specular_sigma", cam.specular_sigma, 1e-4, 10);
-      num(c, "background", p + ".background", cam.background, 0, 1);
-      double ss = cam.supersample;
-      num(c, "supersample", p + ".supersample", ss, 1, 4);
-      if (ss != std::floor(ss)) r_.fail(c["supersample"], p + ".supersample", "expected a whole number 1..4");
-      cam.supersample = static_cast<int>(ss);
-      num(c, "texture_mm", p + ".texture_mm", cam.texture_mm, 1e-3, 1);
-    }
-    if (const YAML::Node f = s["flicker"]) {
-      r_.only_keys(f, "simulation.flicker", {"amplitude", "hz", "drift_hz_per_s"});
-      num(f, "amplitude", "simulation.flicker.amplitude", o.camera.flicker_amplitude, 0, 0.99);
-      num(f, "hz", "simulation.flicker.hz", o.camera.flicker_hz, 1, 10000);
-    }
-    if (const YAML::Node m = s["motion"]) {
-      r_.only_keys(m, "simulation.motion", {"step_px"});
-      num(m, "step_px", "simulation.motion.step_px", o.camera.motion_step_px, 0, 5);
-    }
-    if (const YAML::Node p = s["pressure"]) parse_pressure(p, o);
-    if (const YAML::Node p = s["presses"]) parse_presses(p, o);
-    o.photometric = parse_photometric(r_, s);
-    return o;
-  }
-
- private:
-  void num(const YAML::Node& map, const std::string& key, const std::string& full, double& out, double lo, double hi) {
-    const auto v = r_.get<double>(map, key, full, "a number");
-    if (!v) return;
-    if (!std::isfinite(*v) || *v < lo || *v > hi) {
-      std::ostringstream m;
-      m << "expected a number from " << lo << " to " << hi << ", got " << *v;
-      r_.fail(map[key], full, m.str());
-    }
-    out = *v;
-  }
-  std::vector<double> numbers(const YAML::Node& n, const std::string& full, std::size_t count) {
-    if (!n.IsSequence() || (count && n.size() != count) || n.size() == 0)
-      r_.fail(n, full, count ? "expected a list of " + std::to_string(count) + " numbers" : "expected a list of numbers");
-    std::vector<double> v;
-    for (const auto& e : n) {
-      try {
-        v.push_back(e.as<double>());
-      } catch (const YAML::Exception&) {
-        r_.fail(e, full, "expected a number, got '" + (e.IsScalar() ? e.Scalar() : std::string("a list or map")) + "'");
-      }
-      if (!std::isfinite(v.back())) r_.fail(e, full, "expected a finite number");
-    }
-    return v;
-  }
-  Vec2 vec2(const YAML::Node& n, const std::string& full) {
-    const auto v = numbers(n, full, 2);
-    return {v[0], v[1]};
-  }
-  void parse_skin(const YAML::Node& k, SkinParameters& s) {
-    const std::string p = "simulation.skin";
-    r_.only_keys(k, p, {"tone", "s50_kpa", "width_kpa", "beta", "tau_on_s", "tau_off_s", "pulse_amplitude", "pulse_hz",
-                        "k_green", "blur_sigma_mm", "von_mises_weight", "von_mises_depth_mm", "poisson", "ridge_period_mm",
-                        "ridge_amplitude", "ridge_warp_mm", "mottling_amplitude", "mottling_scale_mm", "texture_seed"});
-    if (auto t = r_.get<std::string>(k, "tone", p + ".tone", "light, medium or dark")) {
-      try {
-        s.tone = SkinTone::preset(*t);
-      } catch (const std::invalid_argument&) {
-        r_.fail(k["tone"], p + ".tone", "expected light, medium or dark, got '" + *t + "'");
-      }
-    }
-    num(k, "s50_kpa", p + ".s50_kpa", s.s50_kpa, 0.1, 200);
-    num(k, "width_kpa", p + ".width_kpa", s.width_kpa, 0.05, 100);
-    num(k, "beta", p + ".beta", s.beta, 1e-4, 1);
-    num(k, "tau_on_s", p + ".tau_on_s", s.tau_on_s, 1e-4, 100);
-    num(k, "tau_off_s", p + ".tau_off_s", s.tau_off_s, 1e-4, 100);
-    num(k, "pulse_amplitude", p + ".pulse_amplitude", s.pulse_amplitude, 0, 0.2);
-    num(k, "pulse_hz", p + ".pulse_hz", s.pulse_hz, 0.1, 10);
-    double kg = s.absorption[1];
-    num(k, "k_green", p + ".k_green", kg, 0, 1);
-    s.absorption = Eigen::Vector3d(0.2, 1.0, 0.3) * kg;
-    num(k, "blur_sigma_mm", p + ".blur_sigma_mm", s.blur_sigma_mm, 0, 10);
-    num(k, "von_mises_weight", p + ".von_mises_weight", s.von_mises_weight, 0, 1);
-    num(k, "von_mises_depth_mm", p + ".von_mises_depth_mm", s.von_mises_depth_mm, 0.01, 5);
-    num(k, "poisson", p + ".poisson", s.poisson, 0, 0.499);
-    num(k, "ridge_period_mm", p + ".ridge_period_mm", s.ridge_period_mm, 0.05, 2);
-    num(k, "ridge_amplitude", p + ".ridge_amplitude", s.ridge_amplitude, 0, 0.4);
-    num(k, "ridge_warp_mm", p + ".ridge_warp_mm", s.ridge_warp_mm, 0, 2);
-    num(k, "mottling_amplitude", p + ".mottling_amplitude", s.mottling_amplitude, 0, 0.19);
-    num(k, "mottling_scale_mm", p + ".mottling_scale_mm", s.mottling_scale_mm, 0.1, 50);
-    double ts = s.texture_seed;
-    num(k, "texture_seed", p + ".texture_seed", ts, 0, 4294967295.0);
-    s.texture_seed = static_cast<std::uint32_t>(ts);
-  }
-  void parse_pressure(const YAML::Node& p, SimulationSpec& o) {
-    const std::string pre = "simulation.pressure";
-    r_.only_keys(p, pre, {"texel_mm", "map", "sources"});
-    num(p, "texel_mm", pre + ".texel_mm", o.field.texel_mm, 0.005, 5);
-    o.pressure_map = r_.path(p, "map", pre + ".map");
-    if (const YAML::Node list = p["sources"]) {
-      if (!list.IsSequence()) r_.fail(list, pre + ".sources", "expected a list of sources");
-      for (std::size_t i = 0; i < list.size(); ++i) {
-        const YAML::Node n = list[i];
-        const std::string q = pre + ".sources[" + std::to_string(i) + "]";
-        r_.only_keys(n, q, {"name", "type", "center_uv_mm", "center_part_mm", "peak_kpa", "sigma_mm", "radius_mm", "force_n",
-                            "rim_cap_ratio", "sphere_radius_mm", "e_star_kpa"});
-        sim::PressureSource s;
-        s.name = r_.get<std::string>(n, "name", q + ".name", "a name").value_or("source " + std::to_string(i + 1));
-        const std::string type = r_.get<std::string>(n, "type", q + ".type", "gaussian, punch or hertz").value_or("gaussian");
-        if (type == "gaussian") s.kind = sim::PressureSource::Kind::gaussian;
-        else if (type == "punch") s.kind = sim::PressureSource::Kind::punch;
-        else if (type == "hertz") s.kind = sim::PressureSource::Kind::hertz;
-        else r_.fail(n["type"], q + ".type", "expected gaussian, punch or hertz, got '" + type + "'");
-        if (n["center_uv_mm"]) s.center_uv_mm = vec2(n["center_uv_mm"], q + ".center_uv_mm");
-        if (n["center_part_mm"]) {
-          const auto v = numbers(n["center_part_mm"], q + ".center_part_mm", 3);
-          s.center_part_mm = Vec3(v[0], v[1], v[2]);
-        }
-        if (s.center_uv_mm.has_value() == s.center_part_mm.has_value())
-          r_.fail(n, q, "give exactly one of center_uv_mm (chart, mm) and center_part_mm (part frame, mm)");
-        num(n, "peak_kpa", q + ".peak_kpa", s.peak_kpa, 0, 1000);
-        num(n, "sigma_mm", q + ".sigma_mm", s.sigma_mm, 0.01, 100);
-        num(n, "radius_mm", q + ".radius_mm", s.radius_mm, 0.01, 100);
-        num(n, "force_n", q + ".force_n", s.force_n, 0, 1000);
-        num(n, "rim_cap_ratio", q + ".rim_cap_ratio", s.rim_cap_ratio, 0.5, 100);
-        num(n, "sphere_radius_mm", q + ".sphere_radius_mm", s.sphere_radius_mm, 0.01, 10000);
-        num(n, "e_star_kpa", q + ".e_star_kpa", s.e_star_kpa, 0.01, 1e7);
-        o.field.sources.push_back(s);
-      }
-    }
-  }
-  void parse_presses(const YAML::Node& p, SimulationSpec& o) {
-    const std::string pre = "simulation.presses";
-    r_.only_keys(p, pre, {"diameters_mm", "levels", "max_kpa", "repetitions", "profile", "frames", "px_per_mm", "trial_jitter", "offset_sd"});
-    sim::PressOptions po;
-    if (p["diameters_mm"]) po.diameters_mm = numbers(p["diameters_mm"], pre + ".diameters_mm", 0);
-    for (double d : po.diameters_mm)
-      if (!(d > 0 && d < 50)) r_.fail(p["diameters_mm"], pre + ".diameters_mm", "expected diameters in (0, 50) mm");
-    auto whole = [&](const char* key, int& out, int lo, int hi) {
-      double v = out;
-      num(p, key, pre + "." + key, v, lo, hi);
-      if (v != std::floor(v)) r_.fail(p[key], pre + "." + key, "expected a whole number");
-      out = static_cast<int>(v);
-    };
-    whole("levels", po.levels, 2, 100);
-    whole("repetitions", po.repetitions, 1, 100);
-    whole("frames", po.frames, 1, 100000);
-    num(p, "max_kpa", pre + ".max_kpa", po.max_kpa, 0.1, 999);
-    num(p, "px_per_mm", pre + ".px_per_mm", po.px_per_mm, 0.1, 1000);
-    num(p, "trial_jitter", pre + ".trial_jitter", po.trial_jitter, 0, 0.99);
-    num(p, "offset_sd", pre + ".offset_sd", po.offset_sd, 0, 0.99);
-    if (auto v = r_.get<std::string>(p, "profile", pre + ".profile", "sneddon or uniform")) {
-      if (*v == "sneddon") po.profile = sim::PressOptions::Profile::sneddon;
-      else if (*v == "uniform") po.profile = sim::PressOptions::Profile::uniform;
-      else r_.fail(p["profile"], pre + ".profile", "expected sneddon or uniform, got '" + *v + "'");
-    }
-    o.presses = po;
-  }
-  const SceneReader& r_;
-};
 
 // The camera model at `scale` × its resolution (mrcal pixel centres: c' = s·(c + ½) − ½).
 CameraModel scaled_camera(CameraModel cam, double s) {
@@ -251,15 +42,17 @@ double seconds_since(std::chrono::steady_clock::time_point t0) {
 
 Run add_simulate(CLI::App& app) {
   struct Opts {
-    std::string scene, out, format;
+    std::string scene_file, out, format;
     long long seed = -1;
     double scale = 0;
     bool frames_only = false, no_presses = false, presses_only = false, quiet = false;
-    PartOptions part;
+    Scene scene;
+    SceneFields::Options options;
+    CacheOptions cache;
   };
   auto o = std::make_shared<Opts>();
   CLI::App* sub = app.add_subcommand("simulate", "Synthetic captures (baseline and worn videos) of skin behind the part, with ground truth and calibration presses");
-  sub->add_option("scene", o->scene, "Scene file (YAML) with a simulation: section")->required();
+  sub->add_option("scene", o->scene_file, "Scene file (YAML) with a simulation: section")->required();
   sub->add_option("--out", o->out, "Output folder (default: simulation.out, else captures/ beside the scene)");
   sub->add_option("--seed", o->seed, "Random seed (noise, motion, presses); default simulation.seed or 1");
   sub->add_option("--format", o->format, "Video format: huffyuv (lossless .mkv, default: fastest lossless to write and decode), ffv1 (lossless .mkv, smaller, 3x slower), mjpg (.avi, lossy: damages 0.5 % signals), png (frame folders)")
@@ -269,17 +62,17 @@ Run add_simulate(CLI::App& app) {
   sub->add_flag("--no-presses", o->no_presses, "Skip the calibration presses");
   sub->add_flag("--presses-only", o->presses_only, "Only the calibration presses (presses.csv, presses-truth.json)");
   sub->add_flag("--quiet", o->quiet, "No progress on stderr");
-  add_part_options(*sub, o->part);
+  o->options = add_scene_options(*sub, o->scene, kPartKeys);
+  add_cache_options(*sub, o->cache);
 
-  return [o, sub]() {
+  return [o]() {
     const auto t_start = std::chrono::steady_clock::now();
-    const SceneFile sc = read_scene(o->scene);
-    const SceneReader reader(sc.path);
-    const YAML::Node simnode = sc.root["simulation"];
-    if (!simnode)
-      throw InputError(o->scene, "key 'simulation'", "missing: the scene has no simulation: section",
+    read_scene(o->scene_file, o->scene, o->options);
+    const Scene& sc = o->scene;
+    if (!sc.simulation)
+      throw InputError(o->scene_file, "key 'simulation'", "missing: the scene has no simulation: section",
                        "add one (see the simulation keys in README.md)");
-    SimulationSpec spec = SimulationParser(reader).parse(simnode);
+    SimulationSection spec = *sc.simulation;
     if (o->seed >= 0) spec.seed = static_cast<std::uint64_t>(o->seed);
     if (!o->format.empty()) spec.format = sim::parse_video_format(o->format);
     if (o->frames_only) spec.format = sim::VideoFormat::png;
@@ -287,30 +80,20 @@ Run add_simulate(CLI::App& app) {
     if (!(spec.scale >= 0.05 && spec.scale <= 4)) throw InputError("", "--scale", "must be from 0.05 to 4");
     const std::filesystem::path out = !o->out.empty() ? std::filesystem::path(o->out)
                                       : !spec.out.empty() ? std::filesystem::path(spec.out)
-                                                          : sc.path.parent_path() / "captures";
-    try {
-      spec.skin.validate();
-      spec.camera.validate();
-      spec.timeline.validate();
-      if (spec.presses) spec.presses->validate();
-      spec.photometric.validate();
-    } catch (const std::invalid_argument& e) {
-      throw InputError(o->scene, "simulation", e.what());
-    }
+                                                          : sc.file.parent_path() / "captures";
     const bool want_captures = !o->presses_only, want_presses = !o->no_presses && spec.presses.has_value();
     if (o->presses_only && !spec.presses)
-      throw InputError(o->scene, "key 'simulation.presses'", "missing, but --presses-only was given");
+      throw InputError(o->scene_file, "key 'simulation.presses'", "missing, but --presses-only was given");
     auto say = [&](const std::string& s) {
       if (!o->quiet) std::cerr << "clearfit simulate: " << s << "\n";
     };
     std::vector<std::string> written;
 
     if (want_captures) {
-      take_scene_part_options(sc, *sub, o->part);
       if (spec.field.sources.empty() && !spec.pressure_map)
-        throw InputError(o->scene, "key 'simulation.pressure'", "no pressure field: give sources or a map");
+        throw InputError(o->scene_file, "key 'simulation.pressure'", "no pressure field: give sources or a map");
       // The part, its contact surface and chart, the camera and pose: as `clearfit map` reads them.
-      const std::unique_ptr<LoadedPart> part = load_part_scene(o->part, true, std::cerr);
+      const std::unique_ptr<LoadedPart> part = load_part_scene(sc, true, std::cerr);
       const Mesh& mesh = part->mesh;
       const ContactSurface& contact = part->contact;
       const Chart& chart = *part->chart;
@@ -333,11 +116,11 @@ Run add_simulate(CLI::App& app) {
       try {
         truth = sim::make_pressure_truth(mesh, contact, chart, spec.field);
       } catch (const InputError& e) {
-        throw InputError(o->scene, "simulation.pressure", e.what());
+        throw InputError(o->scene_file, "simulation.pressure", e.what());
       }
       auto t0 = std::chrono::steady_clock::now();
       std::string cache_state;
-      const RefractionMap map = compute_part_map(*part, o->part, &cache_state);
+      const RefractionMap map = compute_part_map(*part, o->cache, &cache_state);
       say("refraction map " + std::to_string(map.width) + " x " + std::to_string(map.height) + ", " +
           std::to_string(map.stats.by_status[0]) + " pixels see the skin (" + std::to_string(seconds_since(t0)).substr(0, 4) +
           " s, cache " + cache_state + ")");
@@ -357,8 +140,8 @@ Run add_simulate(CLI::App& app) {
               say("frame " + std::to_string(done) + "/" + std::to_string(total));
             }
           }, photometry ? &*photometry : nullptr);
-      std::vector<std::pair<std::string, std::string>> inputs{{"scene", sc.path.string()}, {"mesh", o->part.mesh}, {"camera", o->part.camera}};
-      if (!o->part.pose.empty()) inputs.emplace_back("pose", o->part.pose);
+      std::vector<std::pair<std::string, std::string>> inputs{{"scene", sc.file.string()}, {"mesh", sc.part.mesh}, {"camera", sc.part.camera}};
+      if (!sc.part.pose.empty()) inputs.emplace_back("pose", sc.part.pose);
       if (spec.pressure_map) inputs.emplace_back("pressure_map", *spec.pressure_map);
       if (spec.scale != 1.0) {
         write_cameramodel(camera, out / "camera.cameramodel");

@@ -78,3 +78,19 @@ TEST_F(Scene, BadKeysAndTypesAreNamedWithTheirLine) {
   scene("");
   expect_input_error({"map", "--scene", "part/scene.yaml"}, {"scene.yaml", "empty"});
 }
+
+TEST_F(Scene, RulesNameTheKeyOrTheOptionWithTheValue) {
+  // A value breaking a rule names where it came from: the scene's key, or the option that overrode it.
+  scene(std::string(kScene) + "skin_ior: 0.5\n");
+  expect_input_error({"map", "--scene", "part/scene.yaml"}, {"scene.yaml", "'skin_ior'", "got 0.5", ">= 1"});
+  expect_input_error({"map", "--scene", "part/scene.yaml", "--skin-ior", "0.75"}, {"--skin-ior", "got 0.75"});
+  scene("mesh: slab.obj\nmap:\n  grid_step: 3\n");
+  expect_input_error({"map", "--scene", "part/scene.yaml"}, {"'map.grid_step'", "got 3", "power of two"});
+  scene("mesh: slab.obj\ncontact: {normal: [0, 0, 1], angle_deg: 0}\n");
+  expect_input_error({"map", "--scene", "part/scene.yaml"}, {"'contact.angle_deg'", "got 0"});
+  // A key the command line gave is not read from the file: the scene's bad value is never seen.
+  scene(std::string(kScene) + "skin_ior: 0.5\n");
+  const RunResult r = run({"map", "--scene", "part/scene.yaml", "--no-cache", "--skin-ior", "1.38", "--stats", "s.json"});
+  ASSERT_EQ(r.exit_code, 0) << r;
+  EXPECT_EQ(nlohmann::json::parse(read_text(work() / "s.json"))["indices"]["skin"], 1.38);
+}
