@@ -4,13 +4,20 @@ cylindrical bump (4 mm diameter, 1 mm high) on its skin side. The camera looks a
 top (+z); the finger presses the bump from below and, indented by the bump's height, touches
 the plate's underside around it. Groups: `outer` (top, camera side), `side` (plate rim),
 `contact` (underside, bump wall and bump face: one topological disk, so it can be charted).
-Run: /usr/bin/python3 make_mesh.py  (numpy only; the .obj is committed)."""
+Run: /usr/bin/python3 make_mesh.py  (numpy only; the .obj is committed).
+Other bumps (scripts/simulate-cohort.py): make_mesh.py --radius R --height H --out FILE."""
+import argparse
 import math
 
 HALF = 6.0         # plate half width, mm (12 x 12 mm)
 THICK = 3.0        # plate thickness, mm; top at z = THICK, underside at z = 0
-R = 2.0            # bump radius, mm
-H = 1.0            # bump height, mm: its face at z = -H
+_args = argparse.ArgumentParser(description="the study's plate with one cylindrical bump")
+_args.add_argument("--radius", type=float, default=2.0, help="bump radius, mm")
+_args.add_argument("--height", type=float, default=1.0, help="bump height, mm")
+_args.add_argument("--out", default="study-plate.obj", help="output .obj")
+ARGS = _args.parse_args()
+R = ARGS.radius    # bump radius, mm
+H = ARGS.height    # bump height, mm: its face at z = -H
 N = 96             # segments around
 RINGS_FACE, RINGS_WALL, RINGS_PLATE = 8, 4, 10
 
@@ -82,8 +89,8 @@ for a_ring, b_ring in zip(top_rings, top_rings[1:]):
 for k in range(N):
     faces["outer"].append((top_centre, top_rings[-1][k], top_rings[-1][(k + 1) % N]))
 
-with open("study-plate.obj", "w") as f:
-    f.write("# clearfit sample: the study's acrylic plate with a 4 mm x 1 mm cylindrical bump (make_mesh.py)\n")
+with open(ARGS.out, "w") as f:
+    f.write(f"# clearfit sample: the study's acrylic plate with a {2 * R:g} mm x {H:g} mm cylindrical bump (make_mesh.py)\n")
     for x, y, z in verts:
         f.write(f"v {x:.6f} {y:.6f} {z:.6f}\n")
     for group in ("outer", "side", "contact"):

@@ -49,6 +49,22 @@ json profile_json(const RadialProfile& p) {
   return {{"position_mm", p.position_mm}, {"signal", values}, {"segments", p.segments}};
 }
 
+/// The chart centroid of the assessment's largest place (its area at the lowest threshold), if any.
+std::optional<Vec2> strongest_hotspot(const json& report) {
+  std::optional<Vec2> best;
+  double best_area = -1;
+  for (const json& h : report.at("hotspots")) {
+    const json uv = h.value("centroid_uv_mm", json());
+    if (!uv.is_array() || uv.size() != 2 || !uv[0].is_number() || !uv[1].is_number()) continue;
+    double area = 0;
+    if (h.contains("area_mm2") && h["area_mm2"].is_number()) area = h["area_mm2"].get<double>();
+    else if (h.contains("areas") && h["areas"].is_array() && !h["areas"].empty() && h["areas"][0].is_object())
+      area = h["areas"][0].value("area_mm2", 0.0);
+    if (area > best_area) best_area = area, best = Vec2(uv[0].get<double>(), uv[1].get<double>());
+  }
+  return best;
+}
+
 }  // namespace
 
 ChartField read_assessment_field(const fs::path& assessment, const std::string& npy) {
@@ -84,8 +100,12 @@ json summarise_trial(const Manifest& m, const Trial& t, const fs::path& assessme
   }
   if (t.force_n) s["force_n"] = *t.force_n;
   std::optional<Vec2> centre = c.bump ? c.bump->centre_uv_mm : std::nullopt;
-  s["centre_given"] = centre.has_value();
-  if (!centre) centre = find_profile_centre(signal);
+  s["centre"] = centre ? "given" : "hotspot";
+  if (!centre) centre = strongest_hotspot(report);
+  if (!centre) {
+    s["centre"] = "signal";
+    centre = find_profile_centre(signal);
+  }
   if (!centre) return s;  // no blanching at all: no profile, no contact figures
   s["centre_uv_mm"] = {centre->x(), centre->y()};
   const RadialProfile profile = radial_profile(signal, *centre, m.analysis.profile);
