@@ -129,6 +129,8 @@ std::unique_ptr<Prepared> prepare(AssessOpts& o) {
   ao.blanching.reference_radius_mm = as.reference_radius_mm;
   ao.thresholds_kpa = as.thresholds_kpa;
   ao.min_hotspot_area_mm2 = as.min_hotspot_area_mm2;
+  ao.glare = as.glare.options;
+  ao.normalise_gains = as.normalise_exposure;
   p->sources = {cap.baseline, cap.worn, cap.both};
   return p;
 }
@@ -204,6 +206,9 @@ Run add_assess(CLI::App& app) {
                    {"smoothing_mm", sc.assess.smoothing_mm},
                    {"thresholds_kpa", sc.assess.thresholds_kpa},
                    {"min_hotspot_area_mm2", sc.assess.min_hotspot_area_mm2},
+                   {"glare_mask", sc.assess.glare.options.enabled},
+                   {"glare_margin_px", sc.assess.glare.options.margin_px},
+                   {"exposure_normalisation", sc.assess.normalise_exposure},
                    {"person", sc.calibration.person}};
     for (const auto& n : notes) std::cerr << "clearfit: note: " << n << "\n";
     ctx.run_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

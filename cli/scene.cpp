@@ -214,7 +214,27 @@ void CalibrationSection::bind(SceneFields& f) {
   f.key("person", person, "--person", "Who wears the part (checked against the calibration)");
 }
 
+void GlareSection::bind(SceneFields& f) {
+  f.key("enabled", options.enabled, "--no-glare-mask", "Do not mask specular highlights (glare) out of the signal");
+  f.key("margin_px", options.margin_px, "--glare-margin-px", "Glare regions grow by this many pixels");
+  f.key("threshold_sigmas", options.threshold_sigmas);
+  f.key("min_change", options.min_change);
+  f.key("min_static", options.min_static);
+  f.key("max_fraction", options.max_fraction);
+}
+
+void GlareSection::validate() const {
+  try {
+    options.validate();
+  } catch (const std::invalid_argument& e) {
+    throw SceneRuleError("", e.what());
+  }
+}
+
 void AssessSection::bind(SceneFields& f) {
+  f.section("glare", glare);
+  f.key("normalise_exposure", normalise_exposure, "--no-exposure-normalisation",
+        "Do not divide each 5-frame chunk by its exposure / white-balance / flicker gain");
   f.key("smoothing_mm", smoothing_mm, "--smoothing-mm", "Gaussian smoothing of the signal on the chart, mm");
   f.numbers("thresholds_kpa", thresholds_kpa, 0, "--thresholds-kpa", "Hotspot thresholds, kPa");
   f.numbers("reference_uv_mm", reference_uv_mm, 2, "--reference-uv-mm",
@@ -224,6 +244,11 @@ void AssessSection::bind(SceneFields& f) {
 }
 
 void AssessSection::validate() const {
+  try {
+    glare.validate();
+  } catch (const SceneRuleError& e) {
+    throw SceneRuleError("glare", e.what());
+  }
   if (!(std::isfinite(smoothing_mm) && smoothing_mm >= 0)) rule_broken("smoothing_mm", smoothing_mm, ">= 0 mm");
   for (double t : thresholds_kpa)
     if (!(std::isfinite(t) && t > 0)) rule_broken("thresholds_kpa", t, "positive pressures in kPa");

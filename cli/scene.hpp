@@ -286,7 +286,16 @@ struct CalibrationSection {
 };
 
 /// `assess:`: the blanching signal and the hotspots.
+/// `assess.glare:` the glare mask (fit/glare.hpp); its defaults and rules are GlareOptions'.
+struct GlareSection {
+  GlareOptions options;
+  void bind(SceneFields& f);
+  void validate() const;
+};
+
 struct AssessSection {
+  GlareSection glare;
+  bool normalise_exposure = AssessmentOptions{}.normalise_gains;  ///< per-chunk exposure / white-balance / flicker gains
   double smoothing_mm = BlanchingOptions{}.smoothing_mm;
   std::vector<double> thresholds_kpa = AssessmentOptions{}.thresholds_kpa;
   std::vector<double> reference_uv_mm;  ///< empty: automatic

@@ -46,12 +46,52 @@ PhaseReport phase_report(const CaptureSums& sums, const PhaseAverage& avg, bool 
   r.motion_compensated = compensated;
   r.saturated_fraction = avg.saturated_fraction;
   r.mean_code = avg.mean_code;
+  r.gain_min = avg.gain_min, r.gain_max = avg.gain_max, r.gain_sigma = avg.gain_sigma;
   return r;
 }
 
-void check_exposure(const PhaseAverage& avg, const std::string& source, const std::string& role, const AssessmentOptions& o) {
+/// The pixels of `roi` that see the skin (CV_8U, 255).
+cv::Mat seen_pixels(const RefractionMap& map, const cv::Rect& roi) {
+  cv::Mat seen(roi.size(), CV_8U, cv::Scalar(0));
+  for (int y = 0; y < roi.height; ++y)
+    for (int x = 0; x < roi.width; ++x)
+      if (map.status[map.index(roi.x + x, roi.y + y)] == PixelStatus::valid) seen.at<std::uint8_t>(y, x) = 255;
+  return seen;
+}
+
+/// Glare: refuses captures that are mostly glare; warns about what it masked.
+void check_glare(const GlareMask& g, const PhaseReport& base, const PhaseReport& worn, const GlareOptions& o,
+                 std::vector<std::string>& warnings) {
+  const bool worn_worse = g.fraction_worn >= g.fraction_baseline;
+  const double worst = std::max({g.fraction, g.fraction_worn, g.fraction_baseline});
+  if (worst > o.max_fraction)
+    throw InputError(worn_worse ? worn.source : base.source, worn_worse ? "worn capture" : "baseline capture",
+                     "is mostly glare: specular reflections of the part cover " + fmt(100 * worst) +
+                         " % of the skin the camera sees (at most " + fmt(100 * o.max_fraction) + " % allowed)",
+                     "move the light or the camera so its reflection on the part falls beside the skin (or use a diffuser or "
+                     "crossed polarisers), and film again");
+  if (g.regions > 0)
+    warnings.push_back("glare: " + std::to_string(g.regions) + " specular highlight" + (g.regions == 1 ? "" : "s") + " masked (" +
+                       fmt(100 * g.fraction) + " % of the seen skin): not assessed there");
+  for (const auto& w : g.warnings) warnings.push_back(w);
+}
+
+/// Warns about exposure changes inside a window (normalised) and unsure gain estimates.
+void warn_gains(const PhaseReport& p, const std::string& role, std::vector<std::string>& warnings) {
+  if (p.gain_max / std::max(p.gain_min, 1e-9) > 1.02)
+    warnings.push_back("the exposure or white balance changed by " + fmt(100 * (p.gain_max / p.gain_min - 1)) + " % during the " + role +
+                       " window (chunk gains " + fmt(p.gain_min, 3) + " to " + fmt(p.gain_max, 3) +
+                       "), normalised; lock the camera's exposure and white balance to avoid it");
+  if (p.gain_sigma > 0.002)
+    warnings.push_back("the exposure normalisation of the " + role + " window is unsure: each chunk's gain is known to " +
+                       fmt(100 * p.gain_sigma, 2) + " % only");
+}
+
+/// `glare_fraction`: of the roi, masked as glare (its saturated pixels are allowed).
+void check_exposure(const PhaseAverage& avg, const std::string& source, const std::string& role, const AssessmentOptions& o,
+                    double glare_fraction) {
   const std::string frames = "frames " + std::to_string(avg.window.first) + ".." + std::to_string(avg.window.first + avg.window.count - 1);
-  if (avg.saturated_fraction > o.max_saturated_fraction)
+  if (avg.saturated_fraction > o.max_saturated_fraction + glare_fraction)
     throw InputError(source, frames,
                      "the " + role + " capture is overexposed: " + fmt(100 * avg.saturated_fraction) +
                          " % of the pixels that see the skin are saturated (at most " + fmt(100 * o.max_saturated_fraction) + " % allowed)",
@@ -93,6 +133,7 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
   ro.roi = seen_roi(map, static_cast<int>(std::ceil(o.max_motion_px)) + 2);
   ro.chunk_frames = o.chunk_frames;
   ro.register_motion = o.compensate_motion;
+  ro.colour = o.glare.enabled;
   ro.max_motion_px = o.max_motion_px;
   ro.expected_width = scene.camera->width;
   ro.expected_height = scene.camera->height;
@@ -114,8 +155,8 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
   if (split_mode) {
     const CaptureSums sums = read(captures.both, "capture");
     const PhaseSplit split = split_phases(sums, o.window_frames);
-    base_avg = average_window(sums, split.baseline, o.window_frames);
-    worn_avg = average_window(sums, split.worn, o.window_frames);
+    base_avg = average_window(sums, split.baseline, o.window_frames, o.normalise_gains);
+    worn_avg = average_window(sums, split.worn, o.window_frames, o.normalise_gains);
     a.baseline = phase_report(sums, base_avg, o.compensate_motion);
     a.worn = phase_report(sums, worn_avg, o.compensate_motion);
     a.split = split;
@@ -125,15 +166,21 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
       throw InputError("", "captures", "a phase is missing: give both 'baseline' (not worn) and 'worn', or 'both' for one video holding both",
                        "see the scene file format in README.md");
     const CaptureSums base = read(captures.baseline, "baseline");
-    base_avg = average_window(base, last_frames(base, o.window_frames), o.window_frames);
+    base_avg = average_window(base, last_frames(base, o.window_frames), o.window_frames, o.normalise_gains);
     a.baseline = phase_report(base, base_avg, o.compensate_motion);
     const CaptureSums worn = read(captures.worn, "worn");
-    worn_avg = average_window(worn, last_frames(worn, o.window_frames), o.window_frames);
+    worn_avg = average_window(worn, last_frames(worn, o.window_frames), o.window_frames, o.normalise_gains);
     a.worn = phase_report(worn, worn_avg, o.compensate_motion);
     worn_frame = worn.last_frame;
   }
-  check_exposure(base_avg, a.baseline.source, "baseline", o);
-  check_exposure(worn_avg, a.worn.source, "worn", o);
+  // Glare first: a mostly-glare capture is refused as such, and saturated glare is not overexposure.
+  a.glare = detect_glare(base_avg, worn_avg, seen_pixels(map, base_avg.roi), o.glare);
+  check_glare(a.glare, a.baseline, a.worn, o.glare, a.warnings);
+  const double glare_of_roi = a.glare.empty() ? 0.0 : cv::countNonZero(a.glare.mask) / static_cast<double>(a.glare.mask.total());
+  check_exposure(base_avg, a.baseline.source, "baseline", o, glare_of_roi);
+  check_exposure(worn_avg, a.worn.source, "worn", o, glare_of_roi);
+  warn_gains(a.baseline, "baseline", a.warnings);
+  warn_gains(a.worn, "worn", a.warnings);
   for (const auto* p : {&a.baseline, &a.worn}) {
     const std::string role = p == &a.baseline ? "baseline" : "worn";
     if (p->motion_px_max > 0.5)
@@ -146,7 +193,10 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
   if (o.progress) o.progress("blanching signal", 0, 0);
 
   // Signal on the chart.
-  a.signal = compute_blanching(base_avg, worn_avg, inv, o.blanching);
+  a.glare_texels = glare_texels(a.glare, inv, worn_avg.residual_shift_px);
+  BlanchingOptions bo = o.blanching;
+  if (!a.glare.empty()) bo.excluded = a.glare_texels;
+  a.signal = compute_blanching(base_avg, worn_avg, inv, bo);
   for (const auto& w : a.signal.warnings) a.warnings.push_back(w);
   const ChartGrid& g = a.signal.y.grid;
   a.raster = rasterize_chart(*scene.mesh, *scene.chart, g);
@@ -200,6 +250,11 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
     a.warnings.push_back("no pressure calibration: the report shows the blanching signal and where it is significant, not kPa");
   }
   a.vertex_signal = sample_at_vertices(a.signal.y, *scene.chart);
+  flag_hotspots_at_mask(a.hotspots, a.hotspot_labels, a.glare_texels, g);
+  for (const Hotspot& h : a.hotspots)
+    if (h.touches_mask)
+      a.warnings.push_back("hotspot " + std::to_string(h.id) + " touches the glare mask: it may extend under it, and its peak, area and "
+                           "centroid may be larger or elsewhere than shown");
 
   // Coverage of the contact surface.
   Coverage& c = a.coverage;
@@ -216,6 +271,10 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
     c.contact_area_mm2 += area;
     if (std::isfinite(a.signal.y.value[k])) {
       c.seen_area_mm2 += area;
+      continue;
+    }
+    if (!a.glare_texels.empty() && a.glare_texels[k]) {
+      c.glare_masked_mm2 += area;
       continue;
     }
     const Vec3 in_cam = scene.cam_from_part.apply(a.raster.point[k]);

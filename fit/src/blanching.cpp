@@ -114,6 +114,7 @@ BlanchingSignal compute_blanching(const PhaseAverage& baseline, const PhaseAvera
   s.plain_difference = empty_field(g);
   constexpr float kDark = 1e-4f;  // linear green below this carries no usable ratio
   for (std::size_t k = 0; k < g.size(); ++k) {
+    if (!options.excluded.empty() && options.excluded[k]) continue;  // glare: unseen, not 0
     const float G = s.worn_green.value[k], G0 = s.baseline_green.value[k];
     if (!(std::isfinite(G) && std::isfinite(G0)) || G < kDark || G0 < kDark) continue;
     raw.value[k] = std::log(G / G0);

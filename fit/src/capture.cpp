@@ -2,6 +2,7 @@
 #include <chrono>
 #include <clearfit/error.hpp>
 #include <clearfit/fit/capture.hpp>
+#include <clearfit/fit/photometric.hpp>
 #include <clearfit/fit/srgb.hpp>
 #include <cmath>
 #include <condition_variable>
@@ -185,6 +186,7 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
     const int chunk = n / options.chunk_frames;
     if (chunk >= static_cast<int>(sums.chunk_sum.size())) {
       sums.chunk_sum.emplace_back(cv::Mat::zeros(roi.size(), CV_32F));
+      if (options.colour) sums.chunk_blue.emplace_back(cv::Mat::zeros(half_grid(roi.size()), CV_32F));
       sums.chunk_count.push_back(0);
     }
     cv::Mat& acc = sums.chunk_sum[chunk];
@@ -252,6 +254,7 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
       accumulate(d_prev, -1.f, false);
       accumulate(d, 1.f, false);
     }
+    if (options.colour) accumulate_half_blue(frame, roi, d, sums.chunk_blue[chunk]);
     ++sums.chunk_count[chunk];
     std::array<float, 64> blocks{};
     std::array<int, 64> block_pixels{};
@@ -288,7 +291,7 @@ FrameWindow last_frames(const CaptureSums& sums, int window_frames) {
   return {std::max(0, n - window_frames), std::min(window_frames, n)};
 }
 
-PhaseAverage average_window(const CaptureSums& sums, FrameWindow window, int min_frames) {
+PhaseAverage average_window(const CaptureSums& sums, FrameWindow window, int min_frames, bool normalise_gains) {
   const int c = sums.chunk_frames;
   const int n = static_cast<int>(sums.shift_px.size());
   // Whole chunks: the start rounds down to its chunk (at most chunk_frames - 1 frames earlier),
@@ -308,16 +311,31 @@ PhaseAverage average_window(const CaptureSums& sums, FrameWindow window, int min
                      "the averaging window holds " + std::to_string(avg.window.count) + " usable frames, fewer than the " +
                          std::to_string(min_frames) + " asked for (the capture has " + std::to_string(n) + " frames)",
                      "film longer, or lower captures.window_frames");
-  avg.mean = cv::Mat::zeros(sums.roi.size(), CV_32F);
-  for (int k = first_chunk; k < end_chunk; ++k) avg.mean += sums.chunk_sum[k];
-  avg.mean /= avg.window.count;
-  // Variance of the mean from the spread of the chunk means (equal-size chunks).
+  // Mean of the chunks, each divided by its gain (exposure, white balance, flicker: photometric.hpp).
   const int chunks = end_chunk - first_chunk;
+  auto gain_normalised_mean = [&](const std::vector<cv::Mat>& chunk_sums, std::vector<double>& gains) {
+    cv::Mat mean = cv::Mat::zeros(chunk_sums[first_chunk].size(), CV_32F);
+    for (int k = first_chunk; k < end_chunk; ++k) mean += chunk_sums[k];
+    mean /= avg.window.count;
+    gains.assign(chunks, 1.0);
+    if (!normalise_gains || chunks < 2) return mean;
+    const ChunkGains g = estimate_chunk_gains(chunk_sums, sums.chunk_count, first_chunk, end_chunk, mean);
+    gains = g.gain;
+    if (&chunk_sums == &sums.chunk_sum) avg.gain_min = g.min, avg.gain_max = g.max, avg.gain_sigma = g.sigma;
+    mean.setTo(0);
+    for (int k = first_chunk; k < end_chunk; ++k) cv::scaleAdd(chunk_sums[k], 1.0 / gains[k - first_chunk], mean, mean);
+    mean /= avg.window.count;
+    return mean;
+  };
+  std::vector<double> gains, blue_gains;
+  avg.mean = gain_normalised_mean(sums.chunk_sum, gains);
+  if (!sums.chunk_blue.empty()) avg.blue_half = gain_normalised_mean(sums.chunk_blue, blue_gains);
+  // Variance of the mean from the spread of the gain-normalised chunk means (equal-size chunks).
   avg.variance = cv::Mat::zeros(sums.roi.size(), CV_32F);
   if (chunks >= 3) {
     cv::Mat diff;
     for (int k = first_chunk; k < end_chunk; ++k) {
-      diff = sums.chunk_sum[k] / sums.chunk_count[k] - avg.mean;
+      diff = sums.chunk_sum[k] / (sums.chunk_count[k] * gains[k - first_chunk]) - avg.mean;
       avg.variance += diff.mul(diff);
     }
     avg.variance /= static_cast<double>(chunks) * (chunks - 1);
@@ -353,6 +371,13 @@ PhaseSplit split_phases(const CaptureSums& sums, int window_frames) {
   std::vector<Eigen::Matrix<double, 64, 1>> v(n);
   for (int t = 0; t < n; ++t)
     for (int k = 0; k < 64; ++k) v[t][k] = std::log(std::max(sums.blocks[t][k], 1e-6f));
+  // Exposure, white balance and flicker change all blocks alike: each frame's median block
+  // (the unpressed majority) is taken out, so a gain step is not read as the press.
+  for (auto& frame : v) {
+    Eigen::Matrix<double, 64, 1> sorted = frame;
+    std::nth_element(sorted.data(), sorted.data() + 32, sorted.data() + 64);
+    frame.array() -= sorted[32];
+  }
   for (int k = 0; k < 64; ++k) {
     std::vector<double> d;
     for (int t = 1; t < n; ++t) d.push_back(std::abs(v[t][k] - v[t - 1][k]));

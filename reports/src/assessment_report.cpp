@@ -44,7 +44,23 @@ json phase_json(const PhaseReport& p) {
           {"jitter_px_rms", num(p.jitter_px_rms)},
           {"motion_compensated", p.motion_compensated},
           {"saturated_fraction", num(p.saturated_fraction)},
-          {"mean_green_code", num(p.mean_code)}};
+          {"mean_green_code", num(p.mean_code)},
+          {"chunk_gain_range", {num(p.gain_min), num(p.gain_max)}},
+          {"chunk_gain_sigma", num(p.gain_sigma)}};
+}
+
+json glare_json(const GlareMask& g, const Coverage& cov) {
+  if (g.empty()) return nullptr;
+  return {{"regions", g.regions},
+          {"masked_area_mm2", num(cov.glare_masked_mm2)},
+          {"fraction_of_seen_pixels", num(g.fraction)},
+          {"fraction_baseline", num(g.fraction_baseline)},
+          {"fraction_worn", num(g.fraction_worn)},
+          {"skin_blue_over_green", num(g.blue_over_green)},
+          {"blanching_blue_ratio", num(g.blanching_ratio)},
+          {"blanching_blue_ratio_measured", g.ratio_measured},
+          {"change_sigma", num(g.change_sigma)},
+          {"static_sigma", num(g.static_sigma)}};
 }
 
 /// Colour range of the signal: 0 to its 99th percentile over the seen texels (at least 5 σ).
@@ -101,7 +117,8 @@ json assessment_report_json(const Assessment& a, const AssessmentScene& scene, c
               {"unseen_share", num(seen_and_unseen > 0 ? h.unseen_area_mm2 / seen_and_unseen : 0.0)},
               {"faces", h.faces},
               {"texels", h.texels},
-              {"saturated_texels", h.flagged_texels}};
+              {"saturated_texels", h.flagged_texels},
+              {"touches_glare", h.touches_mask}};
     const std::string unit = a.calibrated ? "_kpa" : "_signal";
     json levels = json::array();
     for (const HotspotLevel& l : h.levels)
@@ -209,9 +226,12 @@ json assessment_report_json(const Assessment& a, const AssessmentScene& scene, c
         {"hidden_fraction",
          {{"total_internal_reflection", num(cov.blocked_reason == "contact_tir" || cov.blocked_reason == "entry_tir" ? cov.hidden_blocked_mm2 / contact : 0.0)},
           {"outside_view", num(cov.hidden_outside_view_mm2 / contact)},
-          {"other", num(cov.blocked_reason == "contact_tir" || cov.blocked_reason == "entry_tir" ? 0.0 : cov.hidden_blocked_mm2 / contact)}}},
+          {"other", num(cov.blocked_reason == "contact_tir" || cov.blocked_reason == "entry_tir" ? 0.0 : cov.hidden_blocked_mm2 / contact)},
+          {"glare", num(cov.glare_masked_mm2 / contact)}}},
+        {"glare_masked_mm2", num(cov.glare_masked_mm2)},
         {"blocked_reason", cov.blocked_reason}}},
       {"captures", {{"baseline", phase_json(a.baseline)}, {"worn", phase_json(a.worn)}, {"split", split}}},
+      {"glare", glare_json(a.glare, cov)},
       {"signal",
        {{"feature", "log_green_ratio"},
         {"reference", a.signal.reference},

@@ -393,7 +393,7 @@ std::string hotspot_table(const json& report, bool calibrated) {
                   : "<th>peak signal</th><th>mean signal</th>";
   for (std::size_t l = 0; l < levels; ++l)
     s += "<th>area &ge; " + num(thresholds[l], calibrated ? 1 : 4) + (calibrated ? " kPa" : "") + " (mm&sup2;)</th>";
-  s += "<th>centroid x, y, z (mm)</th><th>unseen beside it (mm&sup2;)</th><th>saturated texels</th></tr></thead><tbody>";
+  s += "<th>centroid x, y, z (mm)</th><th>unseen beside it (mm&sup2;)</th><th>saturated texels</th><th>at glare</th></tr></thead><tbody>";
   for (const json& h : hotspots) {
     const json& c = at(h, "centroid_mm");
     std::string centroid = kDash;
@@ -417,7 +417,9 @@ std::string hotspot_table(const json& report, bool calibrated) {
     s += cell("centroid_mm", c, centroid) +
          cell("unseen_area_mm2", unseen,
               num(unseen, 1) + (is_number(unseen) && unseen.get<double>() > 0 ? " (" + percent(at(h, "unseen_share")) + ")" : "")) +
-         cell("saturated_texels", at(h, "saturated_texels"), text(at(h, "saturated_texels"))) + "</tr>";
+         cell("saturated_texels", at(h, "saturated_texels"), text(at(h, "saturated_texels"))) +
+         cell("touches_glare", at(h, "touches_glare"), at(h, "touches_glare") == json(true) ? "yes: may extend under the mask" : "no") +
+         "</tr>";
   }
   return s + "</tbody></table><p class=\"hint\">Each place once: its outline is the lowest threshold; the higher thresholds' "
              "areas lie inside it. Unseen beside it: contact surface within 1 mm that the camera does not see (a wall seen "
@@ -437,6 +439,9 @@ std::string coverage_table(const json& report) {
   s += row({th("hidden: outside the view"),
             td(percent(at(hidden, "outside_view")) + " <span class=\"why\">outside the image or behind other parts of the part</span>")});
   s += row({th("hidden: other"), td(percent(at(hidden, "other")) + " <span class=\"why\">rays that leave through another face, or missed frames</span>")});
+  if (const json& g = at(hidden, "glare"); is_number(g))
+    s += row({th("hidden: glare"), td(percent(g) + " (" + num(at(c, "glare_masked_mm2"), 1) +
+                                      " mm&sup2;) <span class=\"why\">specular reflections of the part, masked (grey in the pictures)</span>")});
   return s + "</tbody></table>";
 }
 

@@ -7,6 +7,7 @@
 #include <clearfit/camera/camera_model.hpp>
 #include <clearfit/fit/blanching.hpp>
 #include <clearfit/fit/capture.hpp>
+#include <clearfit/fit/glare.hpp>
 #include <clearfit/fit/hotspots.hpp>
 #include <clearfit/fit/pressure_model.hpp>
 #include <clearfit/refraction/inverse_map.hpp>
@@ -28,6 +29,8 @@ struct AssessmentOptions {
   bool compensate_motion = true;
   double max_motion_px = 10.0;
   BlanchingOptions blanching;
+  GlareOptions glare;                ///< specular highlights masked out of the signal (glare.hpp)
+  bool normalise_gains = true;       ///< divide each chunk by its exposure / white-balance / flicker gain (photometric.hpp)
   std::vector<double> thresholds_kpa{4.3, 5.5};  ///< capillary closing, the study's blanching onset
   /// Without a calibration: thresholds on the signal y, in multiples of the
   /// noise (default 5 σ) unless given as values.
@@ -48,6 +51,7 @@ struct PhaseReport {
   double motion_px_max = 0, jitter_px_rms = 0;
   bool motion_compensated = false;
   double saturated_fraction = 0, mean_code = 0;
+  double gain_min = 1, gain_max = 1, gain_sigma = 0;  ///< per-chunk gains divided out of the window (photometric.hpp)
 };
 
 struct Coverage {
@@ -55,6 +59,7 @@ struct Coverage {
   double seen_area_mm2 = 0;      ///< seen through the part, in both averages
   double hidden_outside_view_mm2 = 0;   ///< projects outside the image
   double hidden_blocked_mm2 = 0;        ///< inside the image but not seen through the part
+  double glare_masked_mm2 = 0;          ///< seen through the part but masked as glare (glare.hpp)
   std::string blocked_reason;           ///< the forward map's dominant reason for pixels that miss the skin
 };
 
@@ -75,6 +80,8 @@ struct Assessment {
   cv::Mat skin_camera;                       ///< last worn frame (BGR8), as the camera saw it
   cv::Mat skin_chart;                        ///< the same resampled onto the chart (BGR8)
   Coverage coverage;
+  GlareMask glare;                           ///< the glare mask in the camera image (roi of the captures)
+  std::vector<std::uint8_t> glare_texels;    ///< per chart texel: 1 = masked as glare
   std::vector<std::string> warnings;
   double read_ms = 0, work_ms = 0, total_ms = 0;
 };

@@ -28,6 +28,7 @@ struct BlanchingOptions {
   double smoothing_mm = 0.25;            ///< Gaussian σ on the chart, mm (0: none)
   std::optional<Vec2> reference_uv_mm;   ///< centre of a reference disk on the chart
   double reference_radius_mm = 2.0;      ///< its radius
+  std::vector<std::uint8_t> excluded;    ///< per chart texel: 1 = left out, unseen (glare, glare.hpp); empty: none
 };
 
 struct BlanchingSignal {

@@ -31,6 +31,7 @@ struct CaptureReadOptions {
   cv::Rect roi;                   ///< pixels that can see the skin; empty: the whole image
   int chunk_frames = 5;           ///< frames per stored partial sum
   bool register_motion = true;    ///< measure and compensate motion
+  bool colour = true;             ///< also sum linear blue at half resolution (photometric.hpp), for the glare mask
   int patch_size = 256;           ///< registration patch edge, px (a power of two), centred on the roi; registered at half resolution
   double max_motion_px = 10.0;    ///< motion beyond this (against the reference) is refused
   int expected_width = 0, expected_height = 0;  ///< the camera's imager; 0: not checked
@@ -54,6 +55,7 @@ struct CaptureSums {
   int chunk_frames = 0;
   std::vector<cv::Mat> chunk_sum;      ///< CV_32F (roi size) sums of linear green, aligned to the reference
   std::vector<int> chunk_count;        ///< frames in each chunk
+  std::vector<cv::Mat> chunk_blue;     ///< CV_32F (half_grid of the roi) sums of linear blue, aligned (empty without `colour`)
   std::vector<Vec2> shift_px;          ///< per frame: content displacement against the reference, px
   std::vector<cv::Point> applied_shift;  ///< per frame: integer shift undone while accumulating
   std::vector<std::array<float, 64>> blocks;  ///< per frame: mean linear green of 8×8 blocks of the roi
@@ -89,11 +91,17 @@ struct PhaseAverage {
   double jitter_px_rms = 0;      ///< rms of the sub-pixel shifts around their mean (blur left), px
   double saturated_fraction = 0; ///< mean over the window
   double mean_code = 0;          ///< mean 8-bit green code over the roi
+  cv::Mat blue_half;             ///< CV_32F (half_grid of the roi): mean linear blue, gain-normalised; empty without colour
+  /// Per-chunk gains (photometric.hpp) divided out of `mean`, `variance` and `blue_half`:
+  /// their extremes and the typical uncertainty of one chunk's gain.
+  double gain_min = 1, gain_max = 1, gain_sigma = 0;
 };
 
 /// Averages `window` (rounded to whole chunks: start and end down to a chunk boundary; InputError when fewer
 /// than `min_frames` remain, naming the capture and the counts).
-PhaseAverage average_window(const CaptureSums& sums, FrameWindow window, int min_frames);
+/// Each chunk is divided by its gain (exposure, white balance, flicker; photometric.hpp) unless
+/// `normalise_gains` is false.
+PhaseAverage average_window(const CaptureSums& sums, FrameWindow window, int min_frames, bool normalise_gains = true);
 
 /// The study's protocol in one video: baseline, then press. Finds the step in
 /// the per-frame block statistics (two-segment least squares), the end of the

@@ -56,6 +56,7 @@ struct Hotspot {
   /// place's figures count only what was seen.
   double unseen_area_mm2 = 0;
   std::vector<HotspotLevel> levels;   ///< one per threshold, ascending
+  bool touches_mask = false;          ///< borders texels left out (glare): it may extend under the mask
 };
 
 struct HotspotOptions {

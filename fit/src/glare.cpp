@@ -1,0 +1,230 @@
+// Glare on the clear part: detection in the window averages, its chart
+// texels, and hotspots that touch it (see glare.hpp).
+#include <clearfit/fit/glare.hpp>
+#include <clearfit/fit/photometric.hpp>
+
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+namespace clearfit {
+namespace {
+
+std::string fmt(double v, int digits) {
+  std::ostringstream s;
+  s.setf(std::ios::fixed);
+  s.precision(digits);
+  s << v;
+  return s.str();
+}
+
+double median_of(std::vector<float> v) {
+  if (v.empty()) return 0;
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+
+/// Values of `m` where `valid` is set.
+std::vector<float> values(const cv::Mat& m, const cv::Mat& valid) {
+  std::vector<float> v;
+  for (int y = 0; y < m.rows; ++y)
+    for (int x = 0; x < m.cols; ++x)
+      if (valid.at<std::uint8_t>(y, x)) v.push_back(m.at<float>(y, x));
+  return v;
+}
+
+/// Robust σ (1.4826 MAD) of `m` over `valid`.
+double robust_sigma(const cv::Mat& m, const cv::Mat& valid) {
+  std::vector<float> v = values(m, valid);
+  const double med = median_of(v);
+  for (float& x : v) x = static_cast<float>(std::abs(x - med));
+  return 1.4826 * median_of(std::move(v));
+}
+
+/// Gaussian smoothing over the valid pixels only (normalised convolution).
+cv::Mat smooth_valid(const cv::Mat& m, const cv::Mat& valid, double sigma) {
+  cv::Mat w, v;
+  valid.convertTo(w, CV_32F, 1.0 / 255);
+  v = m.mul(w);
+  cv::GaussianBlur(v, v, cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
+  cv::GaussianBlur(w, w, cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
+  return v / cv::max(w, 1e-6);
+}
+
+/// Green on the half-resolution grid: the mean of the two pixels blue was read at.
+cv::Mat half_green(const cv::Mat& green) {
+  const cv::Size h = half_grid(green.size());
+  cv::Mat out(h, CV_32F);
+  for (int j = 0; j < h.height; ++j)
+    for (int i = 0; i < h.width; ++i) {
+      const int y = 2 * j, x = 2 * i, x1 = std::min(x + 1, green.cols - 1);
+      out.at<float>(j, i) = 0.5f * (green.at<float>(y, x) + green.at<float>(y, x1));
+    }
+  return out;
+}
+
+/// ρ: the median ratio ΔlnB/ΔlnG over clearly blanched pixels whose ratio lies below the
+/// midpoint between the default ρ and glare's 1/c; nullopt when fewer than 50 such pixels.
+std::optional<double> measure_blanching_ratio(const cv::Mat& dg, const cv::Mat& db, const cv::Mat& valid, double sigma_g,
+                                              double rho0, double inv_c) {
+  const double floor = std::max(6 * sigma_g, 0.01), mid = 0.5 * (rho0 + inv_c);
+  std::vector<float> r;
+  for (int y = 0; y < dg.rows; ++y)
+    for (int x = 0; x < dg.cols; ++x) {
+      const float g = dg.at<float>(y, x);
+      if (!valid.at<std::uint8_t>(y, x) || g < floor) continue;
+      const float q = db.at<float>(y, x) / g;
+      if (q < mid && q > -0.5f) r.push_back(q);
+    }
+  if (r.size() < 50) return std::nullopt;
+  return std::clamp(median_of(std::move(r)), -0.2, 0.8);
+}
+
+}  // namespace
+
+void GlareOptions::validate() const {
+  auto check = [](bool ok, const char* field, double v, const char* rule) {
+    if (!ok) throw std::invalid_argument(std::string("assess.glare.") + field + " = " + fmt(v, 4) + ": " + rule);
+  };
+  check(threshold_sigmas >= 2 && threshold_sigmas <= 100, "threshold_sigmas", threshold_sigmas, "must be in [2, 100]");
+  check(min_change > 0 && min_change < 1, "min_change", min_change, "must be in (0, 1)");
+  check(min_static > 0 && min_static < 10, "min_static", min_static, "must be in (0, 10)");
+  check(saturation > 0.5 && saturation <= 1, "saturation", saturation, "must be in (0.5, 1]");
+  check(smooth_px >= 0 && smooth_px <= 20, "smooth_px", smooth_px, "must be in [0, 20]");
+  check(margin_px >= 0 && margin_px <= 200, "margin_px", margin_px, "must be in [0, 200]");
+  check(max_fraction > 0 && max_fraction <= 1, "max_fraction", max_fraction, "must be in (0, 1]");
+  check(blanching_ratio > -0.5 && blanching_ratio < 0.9, "blanching_ratio", blanching_ratio, "must be in (-0.5, 0.9)");
+}
+
+GlareMask detect_glare(const PhaseAverage& base, const PhaseAverage& worn, const cv::Mat& seen, const GlareOptions& o) {
+  GlareMask out;
+  if (!o.enabled || base.blue_half.empty() || worn.blue_half.empty()) return out;
+  o.validate();
+  out.roi = base.roi;
+  const cv::Size half = base.blue_half.size();
+  const cv::Mat g0 = half_green(base.mean), g1 = half_green(worn.mean);
+  const cv::Mat& b0 = base.blue_half;
+  const cv::Mat& b1 = worn.blue_half;
+  // Pixels that see the skin (both of the pair) and are not black in any channel.
+  cv::Mat valid(half, CV_8U);
+  for (int j = 0; j < half.height; ++j)
+    for (int i = 0; i < half.width; ++i) {
+      const int x = 2 * i, x1 = std::min(x + 1, seen.cols - 1);
+      const bool lit = std::min({g0.at<float>(j, i), g1.at<float>(j, i), b0.at<float>(j, i), b1.at<float>(j, i)}) > 1e-3f;
+      valid.at<std::uint8_t>(j, i) = seen.at<std::uint8_t>(2 * j, x) && seen.at<std::uint8_t>(2 * j, x1) && lit ? 255 : 0;
+    }
+  const int n_valid = cv::countNonZero(valid);
+  if (n_valid < 64) return out;
+  auto log_of = [](const cv::Mat& m) {
+    cv::Mat l;
+    cv::log(cv::max(m, 1e-3), l);
+    return l;
+  };
+  const double s = o.smooth_px;
+  auto smooth = [&](const cv::Mat& m) { return s > 0 ? smooth_valid(m, valid, s) : m.clone(); };
+  const cv::Mat lg0 = smooth(log_of(g0)), lg1 = smooth(log_of(g1)), lb0 = smooth(log_of(b0)), lb1 = smooth(log_of(b1));
+  // Skin colour c = B/G and the static score per phase.
+  const cv::Mat chroma0 = lb0 - lg0, chroma1 = lb1 - lg1;
+  const double m0 = median_of(values(chroma0, valid)), m1 = median_of(values(chroma1, valid));
+  const double c = std::exp(0.5 * (m0 + m1));
+  out.blue_over_green = c;
+  const double inv_c = 1 / std::max(c, 1e-3);
+  // Change between the phases, exposure and white balance taken out as medians.
+  cv::Mat dg = lg1 - lg0, db = lb1 - lb0;
+  dg -= median_of(values(dg, valid));
+  db -= median_of(values(db, valid));
+  const double sigma_dg = robust_sigma(dg, valid);
+  const auto rho_measured = measure_blanching_ratio(dg, db, valid, sigma_dg, o.blanching_ratio, inv_c);
+  const double rho = rho_measured.value_or(o.blanching_ratio);
+  out.blanching_ratio = rho, out.ratio_measured = rho_measured.has_value();
+  const double lever_change = inv_c - rho, lever_static = inv_c - 1;
+  if (lever_change < 0.3)
+    out.warnings.push_back("glare detection is unsure: the skin's blue is close to its green (B/G " + fmt(c, 2) +
+                           "), so glare that changes between the captures is hard to tell from blanching (lever " +
+                           fmt(lever_change, 2) + ", 0.3 wanted); check the white balance");
+  const cv::Mat gamma = (db - rho * dg) / std::max(lever_change, 0.05);
+  cv::Mat static0 = (chroma0 - m0) / std::max(lever_static, 0.05), static1 = (chroma1 - m1) / std::max(lever_static, 0.05);
+  out.change_sigma = robust_sigma(gamma, valid);
+  out.static_sigma = std::max(robust_sigma(static0, valid), robust_sigma(static1, valid));
+  const double t_change = std::max(o.threshold_sigmas * out.change_sigma, o.min_change);
+  const double t_static = std::max(o.threshold_sigmas * out.static_sigma, o.min_static);
+  // Score: ≥ 1 is glare; ≥ ½ may grow a glare region (hysteresis).
+  cv::Mat score(half, CV_32F, cv::Scalar(0)), phase0(half, CV_8U, cv::Scalar(0)), phase1(half, CV_8U, cv::Scalar(0));
+  const float sat = static_cast<float>(o.saturation);
+  for (int j = 0; j < half.height; ++j)
+    for (int i = 0; i < half.width; ++i) {
+      if (!valid.at<std::uint8_t>(j, i)) continue;
+      const float ch = static_cast<float>(gamma.at<float>(j, i) / t_change);
+      const float s0 = static_cast<float>(static0.at<float>(j, i) / t_static), s1 = static_cast<float>(static1.at<float>(j, i) / t_static);
+      const bool sat0 = std::max(g0.at<float>(j, i), b0.at<float>(j, i)) >= sat, sat1 = std::max(g1.at<float>(j, i), b1.at<float>(j, i)) >= sat;
+      score.at<float>(j, i) = std::max({std::abs(ch), s0, s1, sat0 || sat1 ? 10.f : 0.f});
+      // Which capture holds it: glare appearing (γ > 0) is in the worn one, leaving (γ < 0) in the baseline.
+      phase0.at<std::uint8_t>(j, i) = s0 >= 1 || sat0 || ch <= -1;
+      phase1.at<std::uint8_t>(j, i) = s1 >= 1 || sat1 || ch >= 1;
+    }
+  // Hysteresis: regions ≥ ½ that hold a pixel ≥ 1.
+  cv::Mat low = score >= 0.5f, labels;
+  const int n = cv::connectedComponents(low, labels, 8, CV_32S);
+  std::vector<char> keep(n, 0);
+  for (int j = 0; j < half.height; ++j)
+    for (int i = 0; i < half.width; ++i)
+      if (score.at<float>(j, i) >= 1) keep[labels.at<int>(j, i)] = 1;
+  cv::Mat mask_half(half, CV_8U, cv::Scalar(0));
+  for (int j = 0; j < half.height; ++j)
+    for (int i = 0; i < half.width; ++i)
+      if (const int l = labels.at<int>(j, i); l > 0 && keep[l]) mask_half.at<std::uint8_t>(j, i) = 255;
+  for (int l = 1; l < n; ++l) out.regions += keep[l];
+  out.fraction_baseline = cv::countNonZero(phase0) / static_cast<double>(n_valid);
+  out.fraction_worn = cv::countNonZero(phase1) / static_cast<double>(n_valid);
+  // Full resolution, grown by the margin.
+  cv::resize(mask_half, out.mask, cv::Size(2 * half.width, 2 * half.height), 0, 0, cv::INTER_NEAREST);
+  out.mask = out.mask(cv::Rect(0, 0, base.roi.width, base.roi.height)).clone();
+  if (o.margin_px > 0 && out.regions > 0)
+    cv::dilate(out.mask, out.mask, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * o.margin_px + 1, 2 * o.margin_px + 1)));
+  cv::Mat seen_masked;
+  cv::bitwise_and(out.mask, seen, seen_masked);
+  out.fraction = cv::countNonZero(seen_masked) / std::max(1.0, static_cast<double>(cv::countNonZero(seen)));
+  if (!out.ratio_measured && out.regions > 0)
+    out.warnings.push_back("glare mask: blanching's blue-to-green ratio could not be measured (too little blanching), the default " +
+                           fmt(rho, 2) + " was used");
+  return out;
+}
+
+std::vector<std::uint8_t> glare_texels(const GlareMask& glare, const InverseMap& inv, const Vec2& shift) {
+  std::vector<std::uint8_t> out(static_cast<std::size_t>(inv.width) * inv.height, 0);
+  if (glare.empty()) return out;
+  for (int j = 0; j < inv.height; ++j)
+    for (int i = 0; i < inv.width; ++i) {
+      const auto k = inv.index(i, j);
+      if (!inv.valid[k]) continue;
+      const int x = static_cast<int>(std::lround(inv.map_x[k] + shift.x())) - glare.roi.x;
+      const int y = static_cast<int>(std::lround(inv.map_y[k] + shift.y())) - glare.roi.y;
+      if (x >= 0 && y >= 0 && x < glare.mask.cols && y < glare.mask.rows && glare.mask.at<std::uint8_t>(y, x)) out[k] = 1;
+    }
+  return out;
+}
+
+void flag_hotspots_at_mask(std::vector<Hotspot>& hotspots, const std::vector<int>& label,
+                           const std::vector<std::uint8_t>& excluded, const ChartGrid& g) {
+  if (excluded.empty() || label.size() != g.size()) return;
+  for (int j = 0; j < g.height; ++j)
+    for (int i = 0; i < g.width; ++i) {
+      const int id = label[g.index(i, j)];
+      if (id <= 0) continue;
+      bool touches = false;
+      for (int dj = -1; dj <= 1 && !touches; ++dj)
+        for (int di = -1; di <= 1 && !touches; ++di) {
+          const int u = i + di, v = j + dj;
+          touches = u >= 0 && v >= 0 && u < g.width && v < g.height && excluded[g.index(u, v)];
+        }
+      if (!touches) continue;
+      for (Hotspot& h : hotspots)
+        if (h.id == id) h.touches_mask = true;
+    }
+}
+
+}  // namespace clearfit

@@ -1,0 +1,186 @@
+// Exposure / white-balance / flicker normalisation and the glare mask, on
+// synthetic window averages whose gains, blanching and glare are known.
+#include <clearfit/fit/capture.hpp>
+#include <clearfit/fit/glare.hpp>
+#include <clearfit/fit/photometric.hpp>
+#include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
+
+#include <cmath>
+#include <random>
+
+namespace clearfit {
+namespace {
+
+double mottle(int x, int y) { return 1 + 0.08 * std::sin(0.21 * x + 0.13 * y) + 0.05 * std::cos(0.17 * y - 0.09 * x + 1); }
+
+// A capture of a still scene read as chunk sums: chunk k has gain gains[k] and noise.
+CaptureSums still_capture(const std::vector<double>& gains, double noise, std::mt19937& rng) {
+  CaptureSums s;
+  s.roi = cv::Rect(0, 0, 64, 48);
+  s.chunk_frames = 5;
+  s.info.frames = static_cast<int>(gains.size()) * 5;
+  std::normal_distribution<float> n(0.f, static_cast<float>(noise));
+  for (double g : gains) {
+    cv::Mat sum(s.roi.size(), CV_32F);
+    for (int y = 0; y < sum.rows; ++y)
+      for (int x = 0; x < sum.cols; ++x) sum.at<float>(y, x) = static_cast<float>(5 * g * 0.3 * mottle(x, y) + 5 * n(rng) / std::sqrt(5.f));
+    s.chunk_sum.push_back(sum);
+    s.chunk_count.push_back(5);
+    for (int f = 0; f < 5; ++f) {
+      s.shift_px.push_back(Vec2::Zero());
+      s.applied_shift.emplace_back(0, 0);
+      s.saturated_fraction.push_back(0);
+      s.mean_code.push_back(140);
+    }
+  }
+  return s;
+}
+
+TEST(ExposureNormalisation, ChunkGainsAreDividedOutOfTheMeanAndTheNoise) {
+  std::mt19937 rng(5);
+  std::uniform_real_distribution<double> flicker(-0.02, 0.02);
+  std::vector<double> gains, flat(12, 1.0);
+  for (int k = 0; k < 12; ++k) gains.push_back((k < 6 ? 1.0 : 1.05) * (1 + flicker(rng)));  // a 5 % step and flicker
+  const double noise = 0.003;
+  const CaptureSums stepped = still_capture(gains, noise, rng), steady = still_capture(flat, noise, rng);
+  const PhaseAverage a = average_window(stepped, {0, 60}, 60), raw = average_window(stepped, {0, 60}, 60, false);
+  const PhaseAverage clean = average_window(steady, {0, 60}, 60);
+  // The gains found are the truth's up to one common factor.
+  EXPECT_NEAR(a.gain_max / a.gain_min, *std::max_element(gains.begin(), gains.end()) / *std::min_element(gains.begin(), gains.end()), 0.002);
+  EXPECT_LT(a.gain_sigma, 0.001);
+  // The mean is the scene times one factor everywhere.
+  const double factor = a.mean.at<float>(0, 0) / (0.3 * mottle(0, 0));
+  double worst = 0;
+  for (int y = 0; y < 48; ++y)
+    for (int x = 0; x < 64; ++x) worst = std::max(worst, std::abs(a.mean.at<float>(y, x) / (0.3 * mottle(x, y) * factor) - 1));
+  EXPECT_LT(worst, 0.01);
+  // Noise from the spread of the chunks: as without the step; without normalisation the step dominates.
+  const double v = cv::mean(a.variance)[0], v_clean = cv::mean(clean.variance)[0], v_raw = cv::mean(raw.variance)[0];
+  std::printf("variance of the mean: normalised %.3g, steady capture %.3g, not normalised %.3g\n", v, v_clean, v_raw);
+  EXPECT_LT(v, 1.5 * v_clean);
+  EXPECT_GT(v, 0.6 * v_clean);
+  EXPECT_GT(v_raw, 5 * v_clean);
+}
+
+TEST(ExposureNormalisation, GainStepIsNotReadAsThePress) {
+  // One video: a 6 % exposure step at frame 20 of the baseline, the press (a disk, +5 % green) from frame 50.
+  std::mt19937 rng(9);
+  std::normal_distribution<float> n(0.f, 0.002f);
+  CaptureSums s;
+  s.roi = cv::Rect(0, 0, 64, 48);
+  s.chunk_frames = 5;
+  for (int t = 0; t < 90; ++t) {
+    std::array<float, 64> blocks{};
+    const double gain = t >= 20 ? 1.06 : 1.0;
+    for (int k = 0; k < 64; ++k) blocks[k] = static_cast<float>(gain * 0.3 * (1 + 0.05 * (t >= 50 && (k == 27 || k == 28 || k == 35))) * (1 + n(rng)));
+    s.blocks.push_back(blocks);
+  }
+  const PhaseSplit split = split_phases(s, 20);
+  EXPECT_NEAR(split.press_frame, 50, 1);
+  EXPECT_LT(split.baseline.first + split.baseline.count, 50);
+  EXPECT_GE(split.worn.first, 50);
+}
+
+// Window averages of a 200 × 160 view: mottled skin (B/G 0.8), a blanched disk (green +4 %,
+// blue +1.4 %: ρ 0.35), glare that appears in the worn capture, glare in both, an exposure
+// change and a white-balance shift between the phases, noise.
+struct GlareScene {
+  double worn_glare = 0.05, static_glare = 0.1;
+  PhaseAverage base, worn;
+  cv::Mat seen;
+  GlareScene(double worn_peak, double static_peak, std::uint32_t seed) : worn_glare(worn_peak), static_glare(static_peak) {
+    std::mt19937 rng(seed);
+    std::normal_distribution<float> n(0.f, 1.f);
+    const cv::Rect roi(10, 20, 200, 160);
+    seen = cv::Mat(roi.size(), CV_8U, cv::Scalar(255));
+    for (PhaseAverage* p : {&base, &worn}) {
+      const bool w = p == &worn;
+      p->roi = roi;
+      p->mean = cv::Mat(roi.size(), CV_32F);
+      p->blue_half = cv::Mat(half_grid(roi.size()), CV_32F, cv::Scalar(0));
+      for (int y = 0; y < roi.height; ++y)
+        for (int x = 0; x < roi.width; ++x) {
+          const double skin = 0.3 * mottle(x, y), disk = w && std::hypot(x - 60, y - 80) < 20 ? 1 : 0;
+          const double glare = gauss(x, y, 150, 120, static_glare) + (w ? gauss(x, y, 150, 45, worn_glare) : 0);
+          const double gain = w ? 1.04 : 1.0, wb_blue = w ? 0.97 : 1.0;
+          p->mean.at<float>(y, x) = static_cast<float>(gain * (skin * std::exp(0.04 * disk) + glare) * (1 + 0.004 * n(rng)));
+          const double blue = gain * wb_blue * (0.8 * skin * std::exp(0.014 * disk) + glare) * (1 + 0.006 * n(rng));
+          if (y % 2 == 0) p->blue_half.at<float>(y / 2, x / 2) += static_cast<float>(0.5 * blue);
+        }
+    }
+  }
+  static double gauss(int x, int y, double cx, double cy, double peak) {
+    return peak * std::exp(-((x - cx) * (x - cx) + (y - cy) * (y - cy)) / (2 * 8.0 * 8.0));
+  }
+};
+
+TEST(Glare, MasksGlareThatAppearsOrStaysButNotBlanching) {
+  for (std::uint32_t seed : {1u, 2u}) {
+    const GlareScene s(0.05, 0.1, seed);
+    const GlareMask g = detect_glare(s.base, s.worn, s.seen, GlareOptions{});
+    ASSERT_FALSE(g.empty());
+    std::printf("seed %u: %d regions, %.1f %% masked, B/G %.3f, rho %.3f (%s), sigma change %.2g static %.2g\n", seed, g.regions,
+                100 * g.fraction, g.blue_over_green, g.blanching_ratio, g.ratio_measured ? "measured" : "default", g.change_sigma,
+                g.static_sigma);
+    EXPECT_EQ(g.regions, 2);
+    EXPECT_NEAR(g.blue_over_green, 0.8 * std::sqrt(0.97), 0.01);
+    EXPECT_TRUE(g.ratio_measured);
+    EXPECT_NEAR(g.blanching_ratio, 0.35, 0.06);
+    long long missed = 0, blanched_masked = 0;
+    for (int y = 0; y < 160; ++y)
+      for (int x = 0; x < 200; ++x) {
+        const bool m = g.mask.at<std::uint8_t>(y, x) != 0;
+        // Appearing glare at ≥ 1 % of the green, glare in both at ≥ 20 %: masked.
+        if (GlareScene::gauss(x, y, 150, 45, 0.05) >= 0.01 * 0.3 * mottle(x, y) ||
+            GlareScene::gauss(x, y, 150, 120, 0.1) >= 0.2 * 0.3 * mottle(x, y))
+          missed += !m;
+        if (std::hypot(x - 60, y - 80) < 20) blanched_masked += m;
+      }
+    EXPECT_EQ(missed, 0);
+    EXPECT_EQ(blanched_masked, 0);
+    EXPECT_GT(g.fraction_worn, g.fraction_baseline);
+  }
+}
+
+TEST(Glare, NoGlareNoMaskAndOffWhenDisabled) {
+  const GlareScene s(0, 0, 3);
+  const GlareMask g = detect_glare(s.base, s.worn, s.seen, GlareOptions{});
+  EXPECT_EQ(g.regions, 0);
+  EXPECT_EQ(cv::countNonZero(g.mask), 0);
+  GlareOptions off;
+  off.enabled = false;
+  EXPECT_TRUE(detect_glare(s.base, s.worn, s.seen, off).empty());
+  off.enabled = true, off.margin_px = -1;
+  EXPECT_THROW(off.validate(), std::invalid_argument);
+}
+
+TEST(Glare, SaturatedGlareIsMasked) {
+  GlareScene s(0, 0, 4);
+  cv::circle(s.worn.mean, {100, 40}, 6, cv::Scalar(1.0), -1);
+  cv::circle(s.worn.blue_half, {50, 20}, 3, cv::Scalar(1.0), -1);
+  const GlareMask g = detect_glare(s.base, s.worn, s.seen, GlareOptions{});
+  EXPECT_EQ(g.regions, 1);
+  EXPECT_NE(g.mask.at<std::uint8_t>(40, 100), 0);
+  EXPECT_NE(g.mask.at<std::uint8_t>(40, 100 + 6 + 5), 0);  // the margin (6 px) beyond the disk
+}
+
+TEST(Glare, HotspotsBesideTheMaskAreFlagged) {
+  ChartGrid grid;
+  grid.width = 12, grid.height = 8, grid.texel_mm = 0.1;
+  std::vector<int> labels(grid.size(), 0);
+  std::vector<std::uint8_t> excluded(grid.size(), 0);
+  for (int j = 2; j < 5; ++j)
+    for (int i = 1; i < 4; ++i) labels[grid.index(i, j)] = 1;   // hotspot 1: texels (1..3, 2..4)
+  labels[grid.index(8, 4)] = 2;                                 // hotspot 2: one texel
+  excluded[grid.index(4, 5)] = 1;                               // diagonal neighbour of (3, 4)
+  excluded[grid.index(10, 4)] = 1;                              // two texels from hotspot 2
+  std::vector<Hotspot> hotspots(2);
+  hotspots[0].id = 1, hotspots[1].id = 2;
+  flag_hotspots_at_mask(hotspots, labels, excluded, grid);
+  EXPECT_TRUE(hotspots[0].touches_mask);
+  EXPECT_FALSE(hotspots[1].touches_mask);
+}
+
+}  // namespace
+}  // namespace clearfit
