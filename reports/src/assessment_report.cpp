@@ -188,7 +188,8 @@ json assessment_report_json(const Assessment& a, const AssessmentScene& scene, c
                   {"skin_camera_png", "skin_camera.png"},
                   {"skin_chart_png", "skin_chart.png"},
                   {"pressure_npy", "pressure.npy"},
-                  {"signal_npy", "signal.npy"}};
+                  {"signal_npy", "signal.npy"},
+                  {"chart_points_npy", "chart_points.npy"}};
   if (a.calibrated) outputs["heatmap_signal_glb"] = "heatmap_signal.glb";
   json split = nullptr;
   if (a.split)
@@ -316,6 +317,15 @@ std::vector<std::string> write_assessment_outputs(const Assessment& a, const Ass
   write_field_npy(a.signal.y, folder / "signal.npy");
   written.push_back("pressure.npy");
   written.push_back("signal.npy");
+  if (a.raster.grid.size() == a.signal.y.grid.size() && a.raster.point.size() == a.raster.grid.size()) {
+    // Where each texel lies on the part (part frame, mm): profiles and plots in the part's own coordinates.
+    const ChartGrid& g = a.raster.grid;
+    npy::write_float32(folder / "chart_points.npy", {std::size_t(g.height), std::size_t(g.width), 3}, [&](std::size_t row, float* out) {
+      for (int i = 0; i < g.width; ++i)
+        for (int k = 0; k < 3; ++k) out[3 * i + k] = static_cast<float>(a.raster.point[row * g.width + i][k]);
+    });
+    written.push_back("chart_points.npy");
+  }
   write_file_atomically(folder / "report.json", assessment_report_json(a, scene, c).dump(2) + "\n");
   written.push_back("report.json");
   return written;

@@ -29,11 +29,11 @@ void ProfileOptions::validate() const {
           "must be positive and at most half the length");
 }
 
-RadialProfile radial_profile(const ChartField& field, const Vec2& centre_uv_mm, const ProfileOptions& options) {
+RadialProfile radial_profile(const ChartField& field, const Vec2& centre_mm, const ProfileOptions& options) {
   options.validate();
-  if (!centre_uv_mm.allFinite()) throw std::invalid_argument("radial_profile: the centre is not finite");
+  if (!centre_mm.allFinite()) throw std::invalid_argument("radial_profile: the centre is not finite");
   RadialProfile p;
-  p.centre_uv_mm = centre_uv_mm;
+  p.centre_mm = centre_mm;
   const int half = static_cast<int>(std::floor(options.length_mm / 2 / options.sample_mm + 1e-9));
   const int angles = static_cast<int>(std::ceil(180.0 / options.angle_step_deg - 1e-9));
   for (int k = -half; k <= half; ++k) {
@@ -42,7 +42,7 @@ RadialProfile radial_profile(const ChartField& field, const Vec2& centre_uv_mm, 
     int count = 0;
     for (int a = 0; a < angles; ++a) {
       const double theta = a * options.angle_step_deg * std::numbers::pi / 180.0;
-      const float v = field.sample(centre_uv_mm + s * Vec2(std::cos(theta), std::sin(theta)));
+      const float v = field.sample(centre_mm + s * Vec2(std::cos(theta), std::sin(theta)));
       if (std::isnan(v)) continue;
       sum += v;
       ++count;
@@ -52,6 +52,30 @@ RadialProfile radial_profile(const ChartField& field, const Vec2& centre_uv_mm, 
     p.segments.push_back(count);
   }
   return p;
+}
+
+ChartField plane_field(const ChartField& field, const std::vector<Vec3>& points, double cell_mm) {
+  if (points.size() != field.grid.size()) throw std::invalid_argument("plane_field: one point per texel is needed");
+  if (!(cell_mm > 0)) throw std::invalid_argument("plane_field: cell_mm must be positive");
+  Vec2 lo(INFINITY, INFINITY), hi(-INFINITY, -INFINITY);
+  for (std::size_t k = 0; k < points.size(); ++k)
+    if (points[k].allFinite() && std::isfinite(field.value[k])) lo = lo.cwiseMin(points[k].head<2>()), hi = hi.cwiseMax(points[k].head<2>());
+  ChartField plane;
+  if (!(lo.x() <= hi.x())) return plane;
+  plane.grid = ChartGrid::covering(lo, hi, cell_mm);
+  std::vector<double> sum(plane.grid.size(), 0);
+  std::vector<int> count(plane.grid.size(), 0);
+  for (std::size_t k = 0; k < points.size(); ++k) {
+    if (!points[k].allFinite() || !std::isfinite(field.value[k])) continue;
+    const Vec2 f = (points[k].head<2>() - plane.grid.uv_origin) / cell_mm;
+    const int i = static_cast<int>(std::lround(f.x())), j = static_cast<int>(std::lround(f.y()));
+    if (i < 0 || j < 0 || i >= plane.grid.width || j >= plane.grid.height) continue;
+    sum[plane.grid.index(i, j)] += field.value[k];
+    ++count[plane.grid.index(i, j)];
+  }
+  plane.value.resize(plane.grid.size());
+  for (std::size_t k = 0; k < sum.size(); ++k) plane.value[k] = count[k] > 0 ? float(sum[k] / count[k]) : NAN;
+  return plane;
 }
 
 RadialProfile average_profiles(const std::vector<RadialProfile>& profiles) {

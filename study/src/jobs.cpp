@@ -81,7 +81,7 @@ json job_spec(const Manifest& m, const Trial& t, const std::string& version) {
   if (t.force_n) j["force_n"] = *t.force_n;
   if (c.bump) {
     j["bump"] = {c.bump->diameter_mm, c.bump->height_mm};
-    if (c.bump->centre_uv_mm) j["bump_centre"] = {c.bump->centre_uv_mm->x(), c.bump->centre_uv_mm->y()};
+    if (c.bump->centre_mm) j["bump_centre"] = {c.bump->centre_mm->x(), c.bump->centre_mm->y()};
   }
   return j;
 }

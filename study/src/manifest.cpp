@@ -113,18 +113,18 @@ void read_conditions(const Reader& r, const YAML::Node& root, Manifest& m) {
     if (!scene) r.fail(list[i], where + ".scene", "missing: expected the condition's scene file");
     c.scene = *scene;
     if (const YAML::Node b = list[i]["bump"]) {
-      r.keys(b, where + ".bump", {"diameter_mm", "height_mm", "centre_uv_mm"});
+      r.keys(b, where + ".bump", {"diameter_mm", "height_mm", "centre_mm"});
       Bump bump;
       bump.diameter_mm = r.number(b, "diameter_mm", where + ".bump", 0);
       bump.height_mm = r.number(b, "height_mm", where + ".bump", 0);
-      if (const YAML::Node cuv = b["centre_uv_mm"]) {
-        if (!cuv.IsSequence() || cuv.size() != 2) r.fail(cuv, where + ".bump.centre_uv_mm", "expected [u, v] in mm");
+      if (const YAML::Node cxy = b["centre_mm"]) {
+        if (!cxy.IsSequence() || cxy.size() != 2) r.fail(cxy, where + ".bump.centre_mm", "expected [x, y] in mm (part frame)");
         try {
-          bump.centre_uv_mm = Vec2(cuv[0].as<double>(), cuv[1].as<double>());
+          bump.centre_mm = Vec2(cxy[0].as<double>(), cxy[1].as<double>());
         } catch (const YAML::Exception&) {
-          r.fail(cuv, where + ".bump.centre_uv_mm", "expected two numbers");
+          r.fail(cxy, where + ".bump.centre_mm", "expected two numbers");
         }
-        if (!bump.centre_uv_mm->allFinite()) r.fail(cuv, where + ".bump.centre_uv_mm", "expected finite numbers");
+        if (!bump.centre_mm->allFinite()) r.fail(cxy, where + ".bump.centre_mm", "expected finite numbers");
       }
       c.bump = bump;
     }

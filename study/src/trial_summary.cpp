@@ -1,6 +1,7 @@
 #include "trial_summary.hpp"
 
 #include <clearfit/fit/simulate.hpp>
+#include <clearfit/npy.hpp>
 
 #include <cmath>
 #include <fstream>
@@ -49,13 +50,13 @@ json profile_json(const RadialProfile& p) {
   return {{"position_mm", p.position_mm}, {"signal", values}, {"segments", p.segments}};
 }
 
-/// The chart centroid of the assessment's largest place (its area at the lowest threshold), if any.
+/// The (x, y) in the part frame of the assessment's largest place (its area at the lowest threshold), if any.
 std::optional<Vec2> strongest_hotspot(const json& report) {
   std::optional<Vec2> best;
   double best_area = -1;
   for (const json& h : report.at("hotspots")) {
-    const json uv = h.value("centroid_uv_mm", json());
-    if (!uv.is_array() || uv.size() != 2 || !uv[0].is_number() || !uv[1].is_number()) continue;
+    const json uv = h.value("centroid_mm", json());
+    if (!uv.is_array() || uv.size() != 3 || !uv[0].is_number() || !uv[1].is_number()) continue;
     double area = 0;
     if (h.contains("area_mm2") && h["area_mm2"].is_number()) area = h["area_mm2"].get<double>();
     else if (h.contains("areas") && h["areas"].is_array() && !h["areas"].empty() && h["areas"][0].is_object())
@@ -66,6 +67,17 @@ std::optional<Vec2> strongest_hotspot(const json& report) {
 }
 
 }  // namespace
+
+/// The assessment's field as seen along the part's z axis (analysis.hpp, plane_field).
+static ChartField in_part_plane(const fs::path& assessment, const ChartField& field) {
+  const npy::Float32Array a = npy::read_float32(assessment / "chart_points.npy");
+  if (a.shape.size() != 3 || a.shape[0] != std::size_t(field.grid.height) || a.shape[1] != std::size_t(field.grid.width) ||
+      a.shape[2] != 3)
+    throw std::runtime_error((assessment / "chart_points.npy").string() + " does not match the chart grid of report.json");
+  std::vector<Vec3> points(field.grid.size());
+  for (std::size_t k = 0; k < points.size(); ++k) points[k] = Vec3(a.values[3 * k], a.values[3 * k + 1], a.values[3 * k + 2]);
+  return plane_field(field, points, field.grid.texel_mm);
+}
 
 ChartField read_assessment_field(const fs::path& assessment, const std::string& npy) {
   std::ifstream in(assessment / "report.json");
@@ -89,7 +101,7 @@ ChartField read_assessment_field(const fs::path& assessment, const std::string& 
 json summarise_trial(const Manifest& m, const Trial& t, const fs::path& assessment) {
   std::ifstream in(assessment / "report.json");
   const json report = json::parse(in);
-  const ChartField signal = read_assessment_field(assessment, "signal.npy");
+  const ChartField signal = in_part_plane(assessment, read_assessment_field(assessment, "signal.npy"));
   const Condition& c = m.condition(t.condition);
   json s{{"participant", t.participant}, {"condition", t.condition}, {"force_n", nullptr}, {"mean_pressure_kpa", nullptr},
          {"hotspots", report.at("hotspots").size()}, {"noise_sigma", report.at("signal").at("noise_sigma")},
@@ -99,7 +111,7 @@ json summarise_trial(const Manifest& m, const Trial& t, const fs::path& assessme
     s["mean_kpa"] = report["pressure"].at("mean_kpa");
   }
   if (t.force_n) s["force_n"] = *t.force_n;
-  std::optional<Vec2> centre = c.bump ? c.bump->centre_uv_mm : std::nullopt;
+  std::optional<Vec2> centre = c.bump ? c.bump->centre_mm : std::nullopt;
   s["centre"] = centre ? "given" : "hotspot";
   if (!centre) centre = strongest_hotspot(report);
   if (!centre) {
@@ -107,7 +119,7 @@ json summarise_trial(const Manifest& m, const Trial& t, const fs::path& assessme
     centre = find_profile_centre(signal);
   }
   if (!centre) return s;  // no blanching at all: no profile, no contact figures
-  s["centre_uv_mm"] = {centre->x(), centre->y()};
+  s["centre_mm"] = {centre->x(), centre->y()};
   const RadialProfile profile = radial_profile(signal, *centre, m.analysis.profile);
   s["profile"] = profile_json(profile);
   if (!c.bump) return s;
@@ -118,7 +130,8 @@ json summarise_trial(const Manifest& m, const Trial& t, const fs::path& assessme
   s["rim_to_centre"] = number_or_null(band_mean(profile, 0.75 * a, a) / band_mean(profile, 0, 0.35 * a));
   if (t.force_n) s["mean_pressure_kpa"] = 1000.0 * *t.force_n / (std::numbers::pi * a * a);
   if (!report.at("pressure").is_null())
-    s["contact_pressure_kpa"] = number_or_null(disc_mean(read_assessment_field(assessment, "pressure.npy"), *centre, a).first);
+    s["contact_pressure_kpa"] =
+        number_or_null(disc_mean(in_part_plane(assessment, read_assessment_field(assessment, "pressure.npy")), *centre, a).first);
   return s;
 }
 

@@ -76,6 +76,23 @@ TEST(RadialProfile, AverageWeightsBySegments) {
   EXPECT_THROW(average_profiles({a, b}), std::invalid_argument);
 }
 
+TEST(PlaneField, IdentityChartAndAWallSeenEdgeOn) {
+  ChartField f = gaussian_field(Vec2::Zero(), 1.0, 0.05, 40);
+  std::vector<Vec3> points(f.grid.size());
+  for (int j = 0; j < f.grid.height; ++j)
+    for (int i = 0; i < f.grid.width; ++i) points[f.grid.index(i, j)] = Vec3(f.grid.uv(i, j).x(), f.grid.uv(i, j).y(), 0);
+  const ChartField same = plane_field(f, points, 0.05);
+  for (int j = 0; j < f.grid.height; ++j)
+    for (int i = 0; i < f.grid.width; ++i) EXPECT_NEAR(same.sample(f.grid.uv(i, j)), f.value[f.grid.index(i, j)], 1e-6);
+  // Fold row j = 39 onto row 38 (a wall: two heights over one x-y cell): their values are averaged.
+  for (int i = 0; i < f.grid.width; ++i) points[f.grid.index(i, 39)] = points[f.grid.index(i, 38)] + Vec3(0, 0, -1);
+  const ChartField folded = plane_field(f, points, 0.05);
+  EXPECT_NEAR(folded.sample(f.grid.uv(7, 38)), 0.5 * (f.value[f.grid.index(7, 38)] + f.value[f.grid.index(7, 39)]), 1e-6);
+  points[0] = Vec3(NAN, NAN, NAN);
+  EXPECT_TRUE(std::isnan(plane_field(f, points, 0.05).value[0]));
+  EXPECT_THROW(plane_field(f, std::vector<Vec3>(3), 0.05), std::invalid_argument);
+}
+
 TEST(LinearRegression, ExactLineAndBadInput) {
   const LinearRegression r = linear_regression({1, 2, 3, 4}, {3, 5, 7, 9});
   EXPECT_NEAR(r.slope, 2, 1e-12);

@@ -12,7 +12,8 @@
 
 namespace clearfit::study {
 
-/// Radial profile: segments of `length_mm` through `centre` every `angle_step_deg`
+/// Radial profile of a field on a 2-D grid (the chart, or the part's x–y plane:
+/// see plane_field): segments of `length_mm` through `centre` every `angle_step_deg`
 /// (0 ≤ angle < 180°, so each segment is a full diameter), sampled every
 /// `sample_mm` by bilinear interpolation over the defined texels, then averaged
 /// over the segments at each position (undefined samples left out). The study:
@@ -29,10 +30,18 @@ struct RadialProfile {
   std::vector<double> position_mm;  ///< −length/2 … +length/2
   std::vector<double> value;        ///< mean over the segments; NaN where no segment is defined
   std::vector<int> segments;        ///< segments defined at each position
-  Vec2 centre_uv_mm = Vec2::Zero();
+  Vec2 centre_mm = Vec2::Zero();  ///< in the grid's coordinates
 };
 
-RadialProfile radial_profile(const ChartField& field, const Vec2& centre_uv_mm, const ProfileOptions& options = {});
+RadialProfile radial_profile(const ChartField& field, const Vec2& centre_mm, const ProfileOptions& options = {});
+
+/// A chart field seen along the part frame's z axis (the study's plates lie in
+/// x–y; the camera looks down z): the mean of the defined texels whose part
+/// point (`points`: x, y, z per texel of the field's grid, NaN outside) falls
+/// in each `cell_mm` cell of an x–y grid; NaN where none does. Radial profiles
+/// and contact discs are then in millimetres of the part, whatever the chart's
+/// distortion (an LSCM chart of a bump's face, wall and plate stretches the wall).
+ChartField plane_field(const ChartField& field, const std::vector<Vec3>& points, double cell_mm);
 
 /// Averages profiles sampled at the same positions (NaN-aware, weighted by
 /// their segment counts). Throws std::invalid_argument when the positions differ.

@@ -9,7 +9,7 @@
 //   participants:
 //     - {id: p1, calibration: cal/p1.json}            # person: defaults to id
 //   conditions:
-//     - {id: d4-h1, scene: plate.yaml, bump: {diameter_mm: 4, height_mm: 1}}   # centre_uv_mm: [u, v] (else found)
+//     - {id: d4-h1, scene: plate.yaml, bump: {diameter_mm: 4, height_mm: 1}}   # centre_mm: [x, y] (else found)
 //   trials:
 //     - {id: p1-d4-h1-1, participant: p1, condition: d4-h1, both: p1/d4-h1-1.mkv, force_n: 0.8}
 //     - {id: p1-d4-h1-2, participant: p1, condition: d4-h1, baseline: a.mkv, worn: b.mkv}
@@ -30,7 +30,7 @@ struct Participant {
 
 struct Bump {
   double diameter_mm = 0, height_mm = 0;
-  std::optional<Vec2> centre_uv_mm;  ///< on the condition's chart; found from the signal when not given
+  std::optional<Vec2> centre_mm;  ///< (x, y) of its axis in the part frame; the largest place's centroid when not given
 };
 
 struct Condition {
