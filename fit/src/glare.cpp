@@ -2,6 +2,7 @@
 // texels, and hotspots that touch it (see glare.hpp).
 #include <clearfit/fit/glare.hpp>
 #include <clearfit/fit/photometric.hpp>
+#include <clearfit/fit/srgb.hpp>
 
 #include <opencv2/imgproc.hpp>
 
@@ -192,6 +193,30 @@ GlareMask detect_glare(const PhaseAverage& base, const PhaseAverage& worn, const
     out.warnings.push_back("glare mask: blanching's blue-to-green ratio could not be measured (too little blanching), the default " +
                            fmt(rho, 2) + " was used");
   return out;
+}
+
+double glare_fraction(const cv::Mat& bgr, const cv::Rect& patch) {
+  const cv::Rect r = patch & cv::Rect(0, 0, bgr.cols, bgr.rows);
+  if (r.area() == 0) return 0;
+  const float* lut = srgb::to_linear_table8();
+  std::vector<float> ratio, green;
+  ratio.reserve(r.area()), green.reserve(r.area());
+  for (int y = r.y; y < r.br().y; ++y)
+    for (int x = r.x; x < r.br().x; ++x) {
+      const cv::Vec3b p = bgr.at<cv::Vec3b>(y, x);
+      green.push_back(lut[p[1]]);
+      ratio.push_back(lut[p[0]] / std::max(lut[p[1]], 1e-4f));
+    }
+  const double c = median_of(ratio), g = median_of(green);
+  const double whiter = c + 0.5 * (1 - c);
+  long long n = 0;
+  std::size_t k = 0;
+  for (int y = r.y; y < r.br().y; ++y)
+    for (int x = r.x; x < r.br().x; ++x, ++k) {
+      const cv::Vec3b p = bgr.at<cv::Vec3b>(y, x);
+      n += std::max({p[0], p[1], p[2]}) >= 250 || (ratio[k] >= whiter && green[k] >= 1.2 * g);
+    }
+  return static_cast<double>(n) / r.area();
 }
 
 std::vector<std::uint8_t> glare_texels(const GlareMask& glare, const InverseMap& inv, const Vec2& shift) {

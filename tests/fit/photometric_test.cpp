@@ -3,6 +3,7 @@
 #include <clearfit/fit/capture.hpp>
 #include <clearfit/fit/glare.hpp>
 #include <clearfit/fit/photometric.hpp>
+#include <clearfit/fit/srgb.hpp>
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
@@ -163,6 +164,29 @@ TEST(Glare, SaturatedGlareIsMasked) {
   EXPECT_EQ(g.regions, 1);
   EXPECT_NE(g.mask.at<std::uint8_t>(40, 100), 0);
   EXPECT_NE(g.mask.at<std::uint8_t>(40, 100 + 6 + 5), 0);  // the margin (6 px) beyond the disk
+}
+
+TEST(Glare, OneFrameFindsAHighlightForTheRegistration) {
+  // A 128 px patch of mottled skin (sRGB codes from linear R 0.45, G 0.33, B 0.27) with noise,
+  // and a highlight (white light as bright as the skin at its core) of radius ~10 px.
+  std::mt19937 rng(3);
+  std::normal_distribution<double> n(0, 1.5);
+  cv::Mat frame(160, 200, CV_8UC3);
+  long long truth = 0;
+  for (int y = 0; y < 160; ++y)
+    for (int x = 0; x < 200; ++x) {
+      const double m = mottle(x, y), w = 0.6 * std::exp(-(std::pow(x - 100, 2) + std::pow(y - 70, 2)) / (2 * 8.0 * 8.0));
+      truth += x >= 30 && x < 158 && y >= 10 && y < 138 && w >= 0.33 * m;  // glare at least the skin's green
+      const double lin[3] = {0.27 * m + w, 0.33 * m + w, 0.45 * m + w};  // B, G, R
+      for (int c = 0; c < 3; ++c)
+        frame.at<cv::Vec3b>(y, x)[c] = cv::saturate_cast<std::uint8_t>(255 * srgb::from_linear(std::min(lin[c], 1.0)) + n(rng));
+    }
+  const cv::Rect patch(30, 10, 128, 128);
+  const double f = glare_fraction(frame, patch);
+  std::printf("glare fraction %.4f, truth (glare >= the skin's green) %.4f\n", f, truth / (128.0 * 128));
+  EXPECT_NEAR(f, truth / (128.0 * 128), 0.01);
+  EXPECT_GT(f, 0.01);
+  EXPECT_LT(glare_fraction(frame, cv::Rect(0, 100, 60, 60)), 0.002);  // skin only
 }
 
 TEST(Glare, HotspotsBesideTheMaskAreFlagged) {

@@ -59,6 +59,12 @@ struct GlareMask {
 /// CaptureReadOptions::colour); returns an empty mask otherwise or when disabled.
 GlareMask detect_glare(const PhaseAverage& baseline, const PhaseAverage& worn, const cv::Mat& seen, const GlareOptions& options);
 
+/// One frame (BGR8), for registration: the fraction of the pixels of `patch` that look like
+/// strong glare — a channel at 250 or more, or whiter (linear B/G at least halfway from the
+/// patch's median to 1) and brighter (green 1.2× the median) than the skin. A highlight about
+/// as bright as the skin or brighter is found; weak glare is left to detect_glare.
+double glare_fraction(const cv::Mat& bgr, const cv::Rect& patch);
+
 /// Per chart texel: 1 where the texel's camera pixel (plus `shift_px`) lies in the mask.
 std::vector<std::uint8_t> glare_texels(const GlareMask& glare, const InverseMap& inverse, const Vec2& shift_px);
 
