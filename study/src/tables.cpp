@@ -1,5 +1,6 @@
 #include <clearfit/study/tables.hpp>
 
+#include "figures.hpp"
 #include "files.hpp"
 
 #include <clearfit/error.hpp>
@@ -164,6 +165,30 @@ json condition_row(const Condition& c, const std::vector<const JobRecord*>& reco
   return row;
 }
 
+/// profiles.png (the averaged colour profile per condition, the study's figure) and vip.png (VIP by depth).
+void write_figures(const json& profiles, const json& pls_rows, const fs::path& out, StudyTables& tables) {
+  auto curves = [](const json& rows, const char* x, const char* y) {
+    std::vector<Curve> c;
+    for (const json& r : rows) {
+      const std::string id = r["condition"].get<std::string>();
+      if (c.empty() || c.back().label != id) c.push_back({id, {}, {}});
+      c.back().x.push_back(r[x].get<double>());
+      c.back().y.push_back(r[y].is_number() ? r[y].get<double>() : NAN);
+    }
+    return c;
+  };
+  if (!profiles.empty()) {
+    write_line_plot(curves(profiles, "position_mm", "signal"), "Colour change through the bump centre (mean of 20-degree segments)",
+                    "position (mm)", "signal y", 0, out / "profiles.png");
+    tables.files.push_back(out / "profiles.png");
+  }
+  if (!pls_rows.empty()) {
+    write_line_plot(curves(pls_rows, "depth_mm", "vip"), "PLS of the colour profile on stress by depth: VIP (1: dashed)",
+                    "depth (mm)", "VIP", 1, out / "vip.png");
+    tables.files.push_back(out / "vip.png");
+  }
+}
+
 }  // namespace
 
 StudyTables reduce_study(const Manifest& m, const RunContext& context) {
@@ -225,6 +250,7 @@ StudyTables reduce_study(const Manifest& m, const RunContext& context) {
              tables);
   write_file(context.out / "profiles.csv", to_csv(profiles, {"condition", "position_mm", "signal", "segments"}), tables);
   write_file(context.out / "pls.csv", to_csv(pls_rows, {"condition", "depth_mm", "vip", "peak_von_mises_kpa"}), tables);
+  write_figures(profiles, pls_rows, context.out, tables);
   write_file(context.out / "study.json", tables.summary.dump(2) + "\n", tables);
   return tables;
 }
