@@ -1,5 +1,6 @@
 #include <algorithm>
 #include <chrono>
+#include <climits>
 #include <clearfit/error.hpp>
 #include <clearfit/fit/assessment.hpp>
 #include <cmath>
@@ -151,6 +152,7 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
 
   PhaseAverage base_avg, worn_avg;
   cv::Mat worn_frame;
+  Vec2 worn_frame_shift = Vec2::Zero();  // its content's displacement against the reference frame
   const bool split_mode = !captures.both.empty();
   if (split_mode) {
     const CaptureSums sums = read(captures.both, "capture");
@@ -161,6 +163,7 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
     a.worn = phase_report(sums, worn_avg, o.compensate_motion);
     a.split = split;
     worn_frame = sums.last_frame;
+    if (!sums.shift_px.empty() && sums.shift_px.back().allFinite()) worn_frame_shift = sums.shift_px.back();
   } else {
     if (captures.baseline.empty() || captures.worn.empty())
       throw InputError("", "captures", "a phase is missing: give both 'baseline' (not worn) and 'worn', or 'both' for one video holding both",
@@ -172,6 +175,7 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
     worn_avg = average_window(worn, last_frames(worn, o.window_frames), o.window_frames, o.normalise_gains);
     a.worn = phase_report(worn, worn_avg, o.compensate_motion);
     worn_frame = worn.last_frame;
+    if (!worn.shift_px.empty() && worn.shift_px.back().allFinite()) worn_frame_shift = worn.shift_px.back();
   }
   // Glare first: a mostly-glare capture is refused as such, and saturated glare is not overexposure.
   a.glare = detect_glare(base_avg, worn_avg, seen_pixels(map, base_avg.roi), o.glare);
@@ -289,6 +293,15 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
 
   // Pictures: the worn capture as seen, and resampled onto the chart.
   a.skin_camera = worn_frame;
+  if (a.glare.regions > 0) {  // the glare mask outlined (magenta) where it lies in this frame
+    a.skin_camera = worn_frame.clone();
+    std::vector<std::vector<cv::Point>> outlines;
+    cv::findContours(a.glare.mask, outlines, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
+    const cv::Point offset = a.glare.roi.tl() + cv::Point(static_cast<int>(std::lround(worn_frame_shift.x())),
+                                                          static_cast<int>(std::lround(worn_frame_shift.y())));
+    cv::drawContours(a.skin_camera, outlines, -1, cv::Scalar(255, 0, 255), std::max(1, worn_frame.cols / 640), cv::LINE_AA, cv::noArray(),
+                     INT_MAX, offset);
+  }
   a.skin_chart = chart_picture(worn_frame, inv, worn_avg.residual_shift_px);
   a.total_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
   return a;

@@ -77,7 +77,7 @@ struct Assessment {
   std::vector<double> thresholds;            ///< the thresholds used, in the field's unit
   std::vector<int> hotspot_labels;           ///< place id per texel (0 = none), for outlines
   std::vector<float> vertex_pressure, vertex_signal;  ///< per mesh vertex, NaN where unseen / off the contact
-  cv::Mat skin_camera;                       ///< last worn frame (BGR8), as the camera saw it
+  cv::Mat skin_camera;                       ///< last worn frame (BGR8), as the camera saw it, glare mask outlined in magenta
   cv::Mat skin_chart;                        ///< the same resampled onto the chart (BGR8)
   Coverage coverage;
   GlareMask glare;                           ///< the glare mask in the camera image (roi of the captures)
