@@ -1,5 +1,5 @@
 // clearfit board: a printable AprilTag board (SVG at exact size) and its board file.
-#include "commands.hpp"
+#include <clearfit/cli/commands.hpp>
 
 #include <algorithm>
 #include <clearfit/atomic_file.hpp>

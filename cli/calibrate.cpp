@@ -1,6 +1,6 @@
 // clearfit calibrate: a camera model from board views (mrcal's optimizer), or
 // converted from an OpenCV calibration / an existing .cameramodel.
-#include "commands.hpp"
+#include <clearfit/cli/commands.hpp>
 
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/camera/board.hpp>

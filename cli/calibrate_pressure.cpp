@@ -1,6 +1,6 @@
 // clearfit calibrate-pressure: the per-person blanching → pressure calibration
 // from calibration presses (known indenter, known force).
-#include "commands.hpp"
+#include <clearfit/cli/commands.hpp>
 
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/camera/camera_model.hpp>

@@ -1,6 +1,6 @@
 // clearfit compare A B --out DIR: what changed between two assessments of the
 // same part (or of two revisions with the same contact region).
-#include "commands.hpp"
+#include <clearfit/cli/commands.hpp>
 
 #include <clearfit/reports/compare.hpp>
 #include <iostream>

@@ -1,5 +1,5 @@
 // clearfit detect: AprilTag board corners of many images -> mrcal's corners.vnl.
-#include "commands.hpp"
+#include <clearfit/cli/commands.hpp>
 
 #include <clearfit/camera/board.hpp>
 #include <clearfit/camera/camera_model.hpp>

@@ -1,7 +1,7 @@
 // clearfit map: the refraction map of a part seen by a camera (pixel -> skin point).
-#include "commands.hpp"
-#include "part_setup.hpp"
-#include "scene.hpp"
+#include <clearfit/cli/commands.hpp>
+#include <clearfit/cli/part_setup.hpp>
+#include <clearfit/cli/scene.hpp>
 
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/camera/camera_model.hpp>

@@ -1,6 +1,6 @@
 // clearfit mesh-info PART: the validation report and contact surface summary.
-#include "commands.hpp"
-#include "options.hpp"
+#include <clearfit/cli/commands.hpp>
+#include <clearfit/cli/options.hpp>
 
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/geometry/import.hpp>

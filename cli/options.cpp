@@ -1,4 +1,4 @@
-#include "options.hpp"
+#include <clearfit/cli/options.hpp>
 
 #include <clearfit/error.hpp>
 

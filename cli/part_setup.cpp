@@ -1,4 +1,4 @@
-#include "part_setup.hpp"
+#include <clearfit/cli/part_setup.hpp>
 
 #include <clearfit/error.hpp>
 #include <clearfit/geometry/validate.hpp>

@@ -1,6 +1,6 @@
 // clearfit pose: the part's pose (cam_from_part) from AprilTags on the part's fixture.
-#include "commands.hpp"
-#include "options.hpp"
+#include <clearfit/cli/commands.hpp>
+#include <clearfit/cli/options.hpp>
 
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/camera/camera_model.hpp>

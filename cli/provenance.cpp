@@ -1,4 +1,4 @@
-#include "provenance.hpp"
+#include <clearfit/cli/provenance.hpp>
 
 #include <algorithm>
 #include <clearfit/error.hpp>

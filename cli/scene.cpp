@@ -1,6 +1,6 @@
 // The scene file: its sections' keys (bind), their rules (validate), and the
 // one place the file is read (read_scene). See the comment in scene.hpp.
-#include "scene.hpp"
+#include <clearfit/cli/scene.hpp>
 
 #include <clearfit/error.hpp>
 #include <clearfit/geometry/import.hpp>

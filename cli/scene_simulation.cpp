@@ -2,8 +2,8 @@
 // lists of pressure sources, skin tone presets and enumerations. Ranges are
 // checked as each key is read (the error names its line); the modules'
 // validate() checks the combinations (SimulationSection::validate).
-#include "scene.hpp"
-#include "simulate_photometric.hpp"
+#include <clearfit/cli/scene.hpp>
+#include <clearfit/cli/simulate_photometric.hpp>
 
 #include <clearfit/error.hpp>
 

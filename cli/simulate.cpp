@@ -1,10 +1,10 @@
 // clearfit simulate: synthetic captures of skin behind the part (baseline and
 // worn videos), their ground truth, and calibration presses, from the scene
 // file's common keys and its `simulation:` section.
-#include "commands.hpp"
-#include "part_setup.hpp"
-#include "scene.hpp"
-#include "simulate_photometric.hpp"
+#include <clearfit/cli/commands.hpp>
+#include <clearfit/cli/part_setup.hpp>
+#include <clearfit/cli/scene.hpp>
+#include <clearfit/cli/simulate_photometric.hpp>
 
 #include <clearfit/camera/camera_model.hpp>
 #include <clearfit/camera/pose.hpp>

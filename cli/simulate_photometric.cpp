@@ -6,7 +6,7 @@
 //       steps: [{t_s: 1.0, gain: [1.05, 1.05, 1.05]}, {t_s: 3.0, gain: [0.97, 1.0, 1.04]}]
 //       drift_per_s: [0.01, 0.0, -0.01]
 //     flicker: {amplitude: 0.05, hz: 100, drift_hz_per_s: 0.2}
-#include "simulate_photometric.hpp"
+#include <clearfit/cli/simulate_photometric.hpp>
 
 #include <cmath>
 #include <sstream>

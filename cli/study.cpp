@@ -1,6 +1,6 @@
 // clearfit study run|job|reduce|slurm MANIFEST: many participants × conditions
 // × trials as independent jobs (study/), locally or as a Slurm array.
-#include "commands.hpp"
+#include <clearfit/cli/commands.hpp>
 
 #include <clearfit/error.hpp>
 #include <clearfit/study/jobs.hpp>

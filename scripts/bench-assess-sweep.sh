@@ -1,11 +1,12 @@
 #!/usr/bin/env bash
 # Accuracy of clearfit assess across skin tones, noise and motion: renders variants of the
 # wristband sample at half resolution (clearfit simulate), calibrates each simulated wearer
-# from its presses and runs clearfit bench assess against the truth. Usage:
+# from its presses and runs clearfit-bench assess against the truth. Usage:
 #   scripts/bench-assess-sweep.sh [BUILD_DIR]     (default build); work in /tmp/clearfit-sweep
 set -euo pipefail
 cd "$(dirname "$0")/.."
 cf=${1:-build}/cli/clearfit
+cfb=${1:-build}/bench/clearfit-bench
 root=/tmp/clearfit-sweep
 mkdir -p $root
 base=$(sed '/^simulation:/,$d' samples/wristband/scene.yaml | grep -v '^captures:\|^  baseline:\|^  worn:\|^  window_frames:\|^calibration:\|^  pressure:\|^  person:' )
@@ -41,5 +42,5 @@ YAML
   $cf calibrate-pressure --presses $dir/captures/presses.csv --person wearer-1 --camera $dir/captures/camera.cameramodel \
       --out $dir/captures/calibration.json > /dev/null
   echo "== $name"
-  $cf bench assess $dir/scene.yaml | grep -E "RMSE|sensitivity|centroid"
+  $cfb assess $dir/scene.yaml | grep -E "RMSE|sensitivity|centroid"
 done

@@ -62,13 +62,13 @@ inline std::ostream& operator<<(std::ostream& os, const RunResult& r) {
             << r.out << "--- stderr ---\n" << r.err;
 }
 
-/// Runs `clearfit args...` with working directory `workdir`; stdout and stderr
+/// Runs `clearfit args...` (or `program args...`) with working directory `workdir`; stdout and stderr
 /// go to files in `capture_dir` (outside the folders the tests inspect).
 /// Kills the process after `timeout_s` seconds (exit code 128 + SIGKILL).
 inline RunResult run_clearfit(const std::vector<std::string>& args, const fs::path& workdir,
-                              const fs::path& capture_dir, double timeout_s = 30) {
+                              const fs::path& capture_dir, double timeout_s = 30, const fs::path& program = {}) {
   RunResult r;
-  const fs::path exe = clearfit_exe();
+  const fs::path exe = program.empty() ? clearfit_exe() : program;
   std::vector<std::string> argv_s{exe.string()};
   argv_s.insert(argv_s.end(), args.begin(), args.end());
   for (const auto& a : argv_s) r.command += (r.command.empty() ? "" : " ") + a;

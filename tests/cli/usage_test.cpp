@@ -69,5 +69,22 @@ TEST_F(Usage, ConflictingContactOptions) {
   EXPECT_TRUE(listing(work()).empty());
 }
 
+// The benchmarks are a separate program (clearfit-bench), not subcommands of the shipped clearfit.
+TEST_F(Usage, BenchmarksAreASeparateProgram) {
+  const RunResult r = run({"--help"});
+  EXPECT_EQ(r.out.find("bench"), std::string::npos) << r;
+  const fs::path bench = CLEARFIT_BENCH_EXE;
+  const RunResult h = run_clearfit({"--help"}, work(), work(), 30, bench);
+  EXPECT_EQ(h.exit_code, 0) << h;
+  for (const char* command : {"map", "assess"}) EXPECT_NE(h.out.find(command), std::string::npos) << command << "\n" << h;
+  const RunResult m = run_clearfit({"map", "--sizes", "64x48", "--shapes", "slab", "--modes", "exact,grid:8", "--repeat", "1"},
+                                   work(), work(), 60, bench);
+  EXPECT_EQ(m.exit_code, 0) << m;
+  EXPECT_NE(m.out.find("grid:8"), std::string::npos) << m;
+  const RunResult bad = run_clearfit({"assess", "missing.yaml"}, work(), work(), 30, bench);
+  EXPECT_EQ(bad.exit_code, 2) << bad;
+  EXPECT_NE(bad.err.find("clearfit-bench: error: missing.yaml"), std::string::npos) << bad;
+}
+
 }  // namespace
 }  // namespace clearfit::cli_test

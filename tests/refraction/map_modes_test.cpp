@@ -69,7 +69,7 @@ TEST(MapModes, AdaptiveMeetsItsToleranceOnTheBand) {
   ASSERT_GT(exact.stats.by_status[0], 320 * 240 / 4);
   // At this coarse framing a pixel covers 0.3 mm of skin and the map's second
   // derivative is several µm per pixel², so 1 µm needs ~2-pixel cells; the
-  // speed-up grows with resolution (see `clearfit bench map`). Here: the
+  // speed-up grows with resolution (see `clearfit-bench map`). Here: the
   // tolerance is honoured and a looser tolerance traces fewer pixels.
   std::printf("  tolerance_um  traced  interpolated  p50_um  p99_um  max_um  est_max_um  mismatched\n");
   long long previous_traced = exact.stats.traced + 1;

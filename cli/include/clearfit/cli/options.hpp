@@ -2,7 +2,7 @@
 // Helpers shared by the subcommands that read a part: the mesh with its units,
 // the contact-surface selection, the chart method (the values come from the
 // scene's sections, scene.hpp).
-#include "scene.hpp"
+#include <clearfit/cli/scene.hpp>
 
 #include <clearfit/geometry/chart.hpp>
 #include <clearfit/geometry/contact.hpp>

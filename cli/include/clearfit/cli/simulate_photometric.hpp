@@ -1,7 +1,7 @@
 #pragma once
 // simulation.glare, simulation.exposure and simulation.flicker.drift_hz_per_s
 // of the scene file (see simulate_photometric.cpp for the format).
-#include "scene.hpp"
+#include <clearfit/cli/scene.hpp>
 
 #include <clearfit/fit/simulate_photometric.hpp>
 

@@ -3,8 +3,8 @@
 // part, its contact surface, the camera and pose, the indices and the map
 // options (the scene's top-level keys and map section, scene.hpp) loaded into
 // a ready-to-trace part, and its refraction map through the cache.
-#include "options.hpp"
-#include "scene.hpp"
+#include <clearfit/cli/options.hpp>
+#include <clearfit/cli/scene.hpp>
 
 #include <clearfit/camera/camera_model.hpp>
 #include <clearfit/camera/pose.hpp>

@@ -1,9 +1,9 @@
-// clearfit bench map: run time against error of the refraction map's modes
+// clearfit-bench map: run time against error of the refraction map's modes
 // (exact, grid, adaptive) on the analytic parts, against the exact trace and
 // against the floor of two batched ray casts per pixel measured in the same run.
-#include "commands.hpp"
+#include "map_scenes.hpp"
 
-#include "../bench/map_scenes.hpp"
+#include <clearfit/cli/commands.hpp>
 
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/error.hpp>
@@ -242,7 +242,7 @@ void dump_map(const RefractionMap& m, const std::filesystem::path& path) {
 
 }  // namespace
 
-Run add_bench(CLI::App& app) {
+Run add_bench_map(CLI::App& app) {
   struct Opts {
     std::string sizes = "640x480,1920x1080", shapes = "slab,band,dome,bumps",
                 modes = "exact,grid:2,grid:8,grid:32,adaptive:0.1,adaptive:1,adaptive:10", csv, plot, dump;
@@ -250,9 +250,7 @@ Run add_bench(CLI::App& app) {
     bool fresh_memory = false, exact_reasons = false;
   };
   auto o = std::make_shared<Opts>();
-  CLI::App* bench = app.add_subcommand("bench", "Benchmarks (run time against error)");
-  bench->require_subcommand(1);
-  CLI::App* sub = bench->add_subcommand(
+  CLI::App* sub = app.add_subcommand(
       "map", "Refraction map modes on the analytic parts: time, error against the exact trace, ratio to the ray-cast floor");
   sub->add_option("--sizes", o->sizes, "Image sizes WxH, comma separated (3840x2160 needs ~4 GB)")->capture_default_str();
   sub->add_option("--shapes", o->shapes, "Parts: slab, band, dome, bumps")->capture_default_str();
@@ -385,6 +383,6 @@ Run add_bench(CLI::App& app) {
   };
 }
 
-static const Registration registered{"bench", 90, add_bench};
+static const Registration registered{"map", 10, add_bench_map};
 
 }  // namespace clearfit::cli

@@ -1,0 +1,61 @@
+// The assessment's preparation, shared by clearfit assess and clearfit-bench assess.
+#include <clearfit/cli/assess_setup.hpp>
+#include <clearfit/cli/commands.hpp>
+
+#include <clearfit/error.hpp>
+#include <iostream>
+
+namespace clearfit::cli {
+
+void add_assess_options(CLI::App& sub, AssessOpts& o) {
+  o.options = add_scene_options(sub, o.scene, {"", "contact", "map", "outputs.folder", "outputs.texel_mm", "captures", "calibration", "assess"});
+  add_cache_options(sub, o.cache);
+  sub.add_flag("--no-html", o.no_html, "Do not write report.html");
+  sub.add_flag("--quiet", o.quiet, "No progress on stderr");
+}
+
+/// Reads the scene (the command line wins), checks the options, loads and
+/// traces the part, reads the calibration.
+std::unique_ptr<Prepared> prepare(AssessOpts& o) {
+  auto p = std::make_unique<Prepared>();
+  read_scene(o.scene_file, o.scene, o.options);
+  Scene& sc = o.scene;
+  if (sc.outputs.folder.empty()) sc.outputs.folder = (sc.file.parent_path() / "out").string();
+  const CapturesSection& cap = sc.captures;
+  if (cap.both.empty() && (cap.baseline.empty() || cap.worn.empty()))
+    throw InputError(o.scene_file, "captures", "a phase is missing: give 'baseline' (not worn) and 'worn', or 'both'",
+                     "see the scene file format in README.md");
+  if (!o.quiet) std::cerr << "clearfit assess: loading the part and tracing the refraction map\n";
+  p->part = load_part_scene(sc, true, std::cerr);
+  p->map = compute_part_map(*p->part, o.cache, &p->cache);
+  InverseMapOptions iopt;
+  iopt.texel_mm = sc.outputs.texel_mm;
+  iopt.uv_min = p->part->chart->uv_min;
+  iopt.uv_max = p->part->chart->uv_max;
+  iopt.compute_errors = false;
+  p->inverse = compute_inverse_map(p->map, iopt, &p->part->contact);
+  if (!o.quiet)
+    std::cerr << "  map: " << p->map.stats.by_status[0] << " pixels see the skin (" << fixed(100 * p->map.stats.coverage)
+              << " %), cache " << p->cache << "; chart " << p->inverse.width << " x " << p->inverse.height << " texels of "
+              << fixed(sc.outputs.texel_mm, 3) << " mm\n";
+  if (!sc.calibration.pressure.empty()) {
+    p->calibration = read_pressure_calibration(sc.calibration.pressure);
+    p->notes = check_calibration_matches(*p->calibration, sc.calibration.person, format_intrinsics_hash(p->part->camera.intrinsics_hash()));
+  }
+  AssessmentOptions& ao = p->options;
+  ao.window_frames = cap.window_frames;
+  ao.compensate_motion = cap.motion_compensation;
+  ao.max_motion_px = cap.max_motion_px;
+  const AssessSection& as = sc.assess;
+  ao.blanching.smoothing_mm = as.smoothing_mm;
+  if (!as.reference_uv_mm.empty()) ao.blanching.reference_uv_mm = Vec2(as.reference_uv_mm[0], as.reference_uv_mm[1]);
+  ao.blanching.reference_radius_mm = as.reference_radius_mm;
+  ao.thresholds_kpa = as.thresholds_kpa;
+  ao.min_hotspot_area_mm2 = as.min_hotspot_area_mm2;
+  ao.glare = as.glare.options;
+  ao.normalise_gains = as.normalise_exposure;
+  p->sources = {cap.baseline, cap.worn, cap.both};
+  return p;
+}
+
+}  // namespace clearfit::cli
