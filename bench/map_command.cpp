@@ -54,6 +54,12 @@ std::vector<std::string> split(const std::string& s) {
   return out;
 }
 
+std::string join(const std::vector<std::string>& items) {
+  std::string s;
+  for (const std::string& item : items) s += (s.empty() ? "" : ",") + item;
+  return s;
+}
+
 std::vector<Size> parse_sizes(const std::string& s) {
   std::vector<Size> out;
   for (const std::string& item : split(s)) {
@@ -244,7 +250,7 @@ void dump_map(const RefractionMap& m, const std::filesystem::path& path) {
 
 Run add_bench_map(CLI::App& app) {
   struct Opts {
-    std::string sizes = "640x480,1920x1080", shapes = "slab,band,dome,bumps",
+    std::string sizes = "640x480,1920x1080", shapes = join(bench::shape_names()),
                 modes = "exact,grid:2,grid:8,grid:32,adaptive:0.1,adaptive:1,adaptive:10", csv, plot, dump;
     int repeat = 3;
     bool fresh_memory = false, exact_reasons = false;
@@ -253,7 +259,10 @@ Run add_bench_map(CLI::App& app) {
   CLI::App* sub = app.add_subcommand(
       "map", "Refraction map modes on the analytic parts: time, error against the exact trace, ratio to the ray-cast floor");
   sub->add_option("--sizes", o->sizes, "Image sizes WxH, comma separated (3840x2160 needs ~4 GB)")->capture_default_str();
-  sub->add_option("--shapes", o->shapes, "Parts: slab, band, dome, bumps")->capture_default_str();
+  sub->add_option("--shapes", o->shapes,
+                  "Parts: slab, band, dome, bumps, and the random freeform parts field:SEED[:N], shell:SEED[:N] "
+                  "(N quads per edge, default 160: 103k triangles; 224: 202k)")
+      ->capture_default_str();
   sub->add_option("--modes", o->modes, "exact, grid:STEP, adaptive:TOLERANCE_UM")->capture_default_str();
   sub->add_option("--csv", o->csv, "Write the results as CSV (header row)");
   sub->add_option("--plot", o->plot, "Write a PNG plot of time against p99 error");
@@ -272,8 +281,9 @@ Run add_bench_map(CLI::App& app) {
     const std::vector<ModeSpec> modes = parse_modes(o->modes);
     const std::vector<std::string> shapes = split(o->shapes);
     for (const std::string& s : shapes)
-      if (std::find(bench::shape_names().begin(), bench::shape_names().end(), s) == bench::shape_names().end())
-        throw InputError("", "--shapes '" + s + "'", "is not a benchmark part", "slab, band, dome, bumps");
+      if (!bench::known_shape(s))
+        throw InputError("", "--shapes '" + s + "'", "is not a benchmark part",
+                         "slab, band, dome, bumps, field:SEED[:N], shell:SEED[:N]");
     if (shapes.empty()) throw InputError("", "--shapes", "is empty", "e.g. band,dome");
     if (!o->plot.empty() && std::filesystem::path(o->plot).extension() != ".png")
       throw InputError(o->plot, "--plot", "must name a .png file", "e.g. --plot bench.png");

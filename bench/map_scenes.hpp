@@ -23,15 +23,26 @@
 #include <ctime>
 #include <limits>
 #include <memory>
+#include <regex>
 #include <stdexcept>
 #include <string>
 #include <vector>
 
 namespace clearfit::bench {
 
+/// The default shapes: the analytic parts, then the random freeform family
+/// (shapes::random_freeform, seeds fixed before any figure was seen).
 inline const std::vector<std::string>& shape_names() {
-  static const std::vector<std::string> names = {"slab", "band", "dome", "bumps"};
+  static const std::vector<std::string> names = {"slab",    "band",    "dome",    "bumps",   "field:1",
+                                                 "field:2", "field:3", "shell:1", "shell:2", "shell:3"};
   return names;
+}
+
+/// A name make_scene() accepts.
+inline bool known_shape(const std::string& name) {
+  static const std::regex freeform(R"((field|shell):[0-9]{1,9}(:[0-9]{1,4})?)");
+  return std::find(shape_names().begin(), shape_names().end(), name) != shape_names().end() ||
+         std::regex_match(name, freeform);
 }
 
 struct Scene {
@@ -43,8 +54,11 @@ struct Scene {
   TraceScene trace() const { return {&mesh, &contact, index.get(), nullptr}; }
 };
 
-/// The benchmark parts (mm), 40k-130k triangles. Throws std::invalid_argument
-/// for an unknown name.
+/// The benchmark parts (mm), 40k-130k triangles: slab, band, dome, bumps, and
+/// the random freeform family field:SEED[:N] and shell:SEED[:N]
+/// (shapes::random_freeform with N quads per edge, default 160: 103k
+/// triangles; N = 224 gives 202k). Throws std::invalid_argument for an
+/// unknown name.
 inline std::unique_ptr<Scene> make_scene(const std::string& name) {
   const auto t0 = std::chrono::steady_clock::now();
   auto s = std::make_unique<Scene>();
@@ -53,7 +67,20 @@ inline std::unique_ptr<Scene> make_scene(const std::string& name) {
   else if (name == "band") s->mesh = shapes::cylindrical_shell(32, 34.5, 100, 40, 400, 60);
   else if (name == "dome") s->mesh = shapes::spherical_shell(25, 27.5, 40, 64, 512);
   else if (name == "bumps") s->mesh = shapes::bump_plate(60, 40, 3, 140, 12, 2.0, 7);
-  else throw std::invalid_argument("bench: unknown shape '" + name + "' (slab, band, dome, bumps)");
+  else if (name.starts_with("field:") || name.starts_with("shell:")) {
+    const auto kind = name.starts_with("shell:") ? shapes::Freeform::shell : shapes::Freeform::height_field;
+    const std::string rest = name.substr(6);
+    const auto colon = rest.find(':');
+    try {
+      const unsigned seed = static_cast<unsigned>(std::stoul(rest.substr(0, colon)));
+      const int n = colon == std::string::npos ? 160 : std::stoi(rest.substr(colon + 1));
+      s->mesh = shapes::random_freeform(kind, seed, n);
+    } catch (const std::logic_error&) {
+      throw std::invalid_argument("bench: shape '" + name + "': expected field:SEED[:N] or shell:SEED[:N]");
+    }
+  } else
+    throw std::invalid_argument("bench: unknown shape '" + name +
+                                "' (slab, band, dome, bumps, field:SEED[:N], shell:SEED[:N])");
   ContactSelector sel;
   sel.group = "contact";
   s->contact = select_contact(s->mesh, sel);

@@ -242,4 +242,88 @@ Mesh bump_plate(double sx, double sy, double thickness, int n, int bumps, double
   return b.finish("shapes::bump_plate");
 }
 
+namespace {
+
+// A sum of plane waves a_k cos(f_k·p + phase_k) with its gradient.
+struct Waves {
+  struct Wave {
+    double fx, fy, phase, a;
+  };
+  std::vector<Wave> waves;
+  Waves(std::mt19937& rng, int count, double size, double amplitude) {
+    std::uniform_real_distribution<double> unit(0.0, 1.0);
+    for (int k = 0; k < count; ++k) {
+      const double lambda = (0.4 + 0.8 * unit(rng)) * size, dir = 2 * std::numbers::pi * unit(rng);
+      const double f = 2 * std::numbers::pi / lambda;
+      waves.push_back({f * std::cos(dir), f * std::sin(dir), 2 * std::numbers::pi * unit(rng),
+                       (0.3 + 0.7 * unit(rng)) * amplitude});
+    }
+  }
+  double at(double x, double y) const {
+    double z = 0;
+    for (const Wave& w : waves) z += w.a * std::cos(w.fx * x + w.fy * y + w.phase);
+    return z;
+  }
+  Vec2 gradient(double x, double y) const {
+    Vec2 g = Vec2::Zero();
+    for (const Wave& w : waves) g -= w.a * std::sin(w.fx * x + w.fy * y + w.phase) * Vec2(w.fx, w.fy);
+    return g;
+  }
+  double bound() const {
+    double s = 0;
+    for (const Wave& w : waves) s += w.a;
+    return s;
+  }
+};
+
+}  // namespace
+
+const char* to_string(Freeform kind) { return kind == Freeform::shell ? "shell" : "height_field"; }
+
+Mesh random_freeform(Freeform kind, unsigned seed, int n) {
+  require(n >= 1, "random_freeform needs n >= 1");
+  std::mt19937 rng(seed);
+  std::uniform_real_distribution<double> unit(0.0, 1.0);
+  const double sx = 40, sy = 25 + 15 * unit(rng), thickness = 2.5;
+  const bool shell = kind == Freeform::shell;
+  double k1 = 0, k2 = 0, rot = 0;
+  if (shell) {
+    k1 = (1.0 / 80 + (1.0 / 25 - 1.0 / 80) * unit(rng)) * (unit(rng) < 0.5 ? -1 : 1);
+    k2 = (1.0 / 80 + (1.0 / 25 - 1.0 / 80) * unit(rng)) * (unit(rng) < 0.5 ? -1 : 1);
+    rot = std::numbers::pi * unit(rng);
+  }
+  const Waves waves(rng, 6, sx, shell ? 0.1 : 0.5);
+  const Waves thick(rng, 4, sx, 1.0);
+  const double thick_bound = thick.bound();
+  const double c = std::cos(rot), s = std::sin(rot);
+  auto h = [&](double x, double y) {
+    const double u = c * x + s * y, v = -s * x + c * y;
+    return 0.5 * (k1 * u * u + k2 * v * v) + waves.at(x, y);
+  };
+  auto normal = [&](double x, double y) {  // unit, upwards
+    const double u = c * x + s * y, v = -s * x + c * y;
+    const double du = k1 * u, dv = k2 * v;
+    const Vec2 g = Vec2(c * du - s * dv, s * du + c * dv) + waves.gradient(x, y);
+    return Vec3(-g.x(), -g.y(), 1.0).normalized();
+  };
+  auto t = [&](double x, double y) { return thickness * (1 + 0.25 * thick.at(x, y) / thick_bound); };
+  auto x = [&](int i) { return lerp(-sx / 2, sx / 2, i, n); };
+  auto y = [&](int j) { return lerp(-sy / 2, sy / 2, j, n); };
+  auto contact = [&](int i, int j) { return Vec3(x(i), y(j), h(x(i), y(j))); };
+  auto outer = [&](int i, int j) {
+    const double xi = x(i), yj = y(j);
+    if (!shell) return Vec3(xi, yj, h(xi, yj) + t(xi, yj));
+    return Vec3(Vec3(xi, yj, h(xi, yj)) + t(xi, yj) * normal(xi, yj));
+  };
+  Builder b;
+  b.patch(n, n, contact, [&](const Vec3& p) { return Vec3(-normal(p.x(), p.y())); }, "contact");
+  b.patch(n, n, outer, [&](const Vec3& p) { return normal(p.x(), p.y()); }, "outer");
+  auto wall = [&](int i, int j, int k) { return k ? outer(i, j) : contact(i, j); };
+  b.patch(n, 1, [&](int i, int k) { return wall(i, 0, k); }, [](const Vec3&) { return Vec3(0, -1, 0); }, "side");
+  b.patch(n, 1, [&](int i, int k) { return wall(i, n, k); }, [](const Vec3&) { return Vec3(0, 1, 0); }, "side");
+  b.patch(n, 1, [&](int j, int k) { return wall(0, j, k); }, [](const Vec3&) { return Vec3(-1, 0, 0); }, "side");
+  b.patch(n, 1, [&](int j, int k) { return wall(n, j, k); }, [](const Vec3&) { return Vec3(1, 0, 0); }, "side");
+  return b.finish(std::string("shapes::random_freeform(") + to_string(kind) + ", " + std::to_string(seed) + ")");
+}
+
 }  // namespace clearfit::shapes

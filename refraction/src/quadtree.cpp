@@ -17,7 +17,8 @@ Quadtree::Quadtree(const MapRun& run)
     : run_(run), mesh_(*run.scene.mesh), map_(run.map), st_(run.map.stats), box_(run.box), W_(run.map.width),
       adaptive_(run.options.mode == MapOptions::Mode::adaptive), tol_mm_(run.options.tolerance_um * 1e-3),
       component_(run.scene.contact->component),
-      traced_(static_cast<std::size_t>(run.map.width) * run.map.height, kUntouched) {}
+      traced_(static_cast<std::size_t>(run.map.width) * run.map.height, kUntouched),
+      accept_mm_(kAcceptFraction * tol_mm_) {}
 
 void Quadtree::trace_pixels(const std::vector<std::uint32_t>& pixels_in) {
   // Distinct untraced pixels, in the callers' order (cell by cell: nearby
@@ -48,10 +49,15 @@ void Quadtree::trace_pixels(const std::vector<std::uint32_t>& pixels_in) {
   st_.traced += static_cast<long long>(pixels.size());
 }
 
-// Two check pixels, at a quarter and three quarters of the cell's diagonal.
+// The check pixels, at a quarter and three quarters of the cell's diagonals.
 std::pair<int, int> Quadtree::check_xy(const Cell& c, int k) {
   const int dx = (c.x1 - c.x0) / 4, dy = (c.y1 - c.y0) / 4;
-  return k == 0 ? std::pair{c.x0 + dx, c.y0 + dy} : std::pair{c.x1 - dx, c.y1 - dy};
+  switch (k) {
+    case 0: return {c.x0 + dx, c.y0 + dy};
+    case 1: return {c.x1 - dx, c.y1 - dy};
+    case 2: return {c.x1 - dx, c.y0 + dy};
+    default: return {c.x0 + dx, c.y1 - dy};
+  }
 }
 
 // A split cell's children have the parent's nodes as corners: a child whose
@@ -83,7 +89,7 @@ void Quadtree::run() {
   std::vector<Cell> cells;
   for (int y = box_.y0; y < box_.y1 || y == box_.y0; y += S)
     for (int x = box_.x0; x < box_.x1 || x == box_.x0; x += S)
-      cells.push_back({x, y, std::min(x + S, box_.x1), std::min(y + S, box_.y1)});
+      cells.push_back({x, y, std::min(x + S, box_.x1), std::min(y + S, box_.y1), kTopLevel});
   std::vector<Cell> boundary;
   bool first_level = true;
   while (!cells.empty()) {
@@ -92,12 +98,12 @@ void Quadtree::run() {
       const Nodes q = nodes_of(c);
       batch.insert(batch.end(), q.pixel, q.pixel + q.n);
       if (!done(c) && (first_level || !corners_differ(c)))
-        for (int k = 0; k < 2; ++k) batch.push_back(idx(check_xy(c, k).first, check_xy(c, k).second));
+        for (int k = 0; k < kChecks; ++k) batch.push_back(idx(check_xy(c, k).first, check_xy(c, k).second));
     }
     first_level = false;
     trace_pixels(batch);
     std::vector<char> decision(cells.size(), skip);
-    std::vector<double> cell_err(cells.size(), 0);
+    std::vector<double> cell_err(cells.size(), kUnknownErr);
     decide(cells, decision, cell_err);
     std::vector<Cell> next;
     for (std::size_t ci = 0; ci < cells.size(); ++ci) {
@@ -107,9 +113,11 @@ void Quadtree::run() {
       if (decision[ci] != split) continue;
       const int xm = (c.x0 + c.x1) / 2, ym = (c.y0 + c.y1) / 2;
       const bool sx = c.x1 - c.x0 > 1, sy = c.y1 - c.y0 > 1;
-      if (sx && sy) next.insert(next.end(), {{c.x0, c.y0, xm, ym}, {xm, c.y0, c.x1, ym}, {c.x0, ym, xm, c.y1}, {xm, ym, c.x1, c.y1}});
-      else if (sx) next.insert(next.end(), {{c.x0, c.y0, xm, c.y1}, {xm, c.y0, c.x1, c.y1}});
-      else next.insert(next.end(), {{c.x0, c.y0, c.x1, ym}, {c.x0, ym, c.x1, c.y1}});
+      const double e = cell_err[ci];
+      if (sx && sy)
+        next.insert(next.end(), {{c.x0, c.y0, xm, ym, e}, {xm, c.y0, c.x1, ym, e}, {c.x0, ym, xm, c.y1, e}, {xm, ym, c.x1, c.y1, e}});
+      else if (sx) next.insert(next.end(), {{c.x0, c.y0, xm, c.y1, e}, {xm, c.y0, c.x1, c.y1, e}});
+      else next.insert(next.end(), {{c.x0, c.y0, c.x1, ym, e}, {c.x0, ym, c.x1, c.y1, e}});
     }
     fill_accepted(cells, decision);
     cells = std::move(next);
@@ -128,8 +136,13 @@ void Quadtree::decide(const std::vector<Cell>& cells, std::vector<char>& decisio
     const Cell& c = cells[ci];
     if (done(c)) return;
     const Nodes q = nodes_of(c);
-    const std::uint32_t checks[2] = {idx(check_xy(c, 0).first, check_xy(c, 0).second),
-                                     idx(check_xy(c, 1).first, check_xy(c, 1).second)};
+    std::uint32_t checks[kChecks];
+    bool checks_valid = true, checks_first = true;
+    for (int k = 0; k < kChecks; ++k) {
+      checks[k] = idx(check_xy(c, k).first, check_xy(c, k).second);
+      checks_valid &= map_.status[checks[k]] == PixelStatus::valid;
+      checks_first &= map_.status[checks[k]] == map_.status[q.pixel[0]];
+    }
     const PixelStatus first = map_.status[q.pixel[0]];
     bool all_valid = true, same_invalid = true;
     for (int k = 0; k < q.n; ++k) {
@@ -142,15 +155,20 @@ void Quadtree::decide(const std::vector<Cell>& cells, std::vector<char>& decisio
       for (int k = 0; k < q.n; ++k) all_valid &= component_[map_.face[q.pixel[k]]] == comp;
     }
     decision[ci] = split;
-    if (all_valid && map_.status[checks[0]] == PixelStatus::valid && map_.status[checks[1]] == PixelStatus::valid) {
+    if (all_valid && checks_valid) {
       double err = 0;
-      for (int k = 0; k < 2; ++k) {
+      for (int k = 0; k < kChecks; ++k) {
         const auto [cx, cy] = check_xy(c, k);
         const auto guess = interpolate(q, weights(q, cx, cy));
         err = std::max(err, guess ? (guess->point - map_.skin_point[checks[k]]).norm() : 1e300);
       }
-      if (err < 1e300 && (!adaptive_ || err <= tol_mm_)) decision[ci] = accept_valid, cell_err[ci] = err;
-    } else if (same_invalid && map_.status[checks[0]] == first && map_.status[checks[1]] == first) {
+      cell_err[ci] = err;
+      // adaptive: the checks of a cell whose parent had no estimate (some of
+      // its nodes or checks invalid: a boundary or a discontinuity nearby)
+      // are not trusted alone.
+      const bool estimated = c.parent_err != kUnknownErr;
+      if (err < 1e300 && (!adaptive_ || (err <= accept_mm_ && estimated))) decision[ci] = accept_valid;
+    } else if (same_invalid && checks_first) {
       decision[ci] = accept_invalid;  // uniformly invalid for the same reason
     } else if (c.x1 - c.x0 <= kResolveCell && c.y1 - c.y0 <= kResolveCell) {
       decision[ci] = to_resolver;  // a small cell that a validity boundary crosses

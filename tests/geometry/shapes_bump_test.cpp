@@ -103,3 +103,25 @@ TEST(BumpPlate, VolumeConvergesToTheHeightFieldIntegral) {
   }
   EXPECT_LT(previous, 4e-5 * reference);
 }
+
+// The random freeform family: closed and outward for every kind and several
+// seeds, the part between its surfaces (positive volume, thickness within the
+// drawn range), and the same part for the same seed.
+TEST(RandomFreeform, ClosedOutwardAndReproducible) {
+  for (const auto kind : {shapes::Freeform::height_field, shapes::Freeform::shell})
+    for (unsigned seed : {1u, 2u, 3u, 99u}) {
+      const Mesh m = shapes::random_freeform(kind, seed, 24);
+      m.check_consistent();
+      EXPECT_TRUE(test::closed_and_consistent(m)) << shapes::to_string(kind) << " " << seed;
+      EXPECT_EQ(m.num_faces(), 4 * 24 * 24 + 8 * 24);
+      // Volume against area x mean thickness: 2.5 mm ± 25 %, over 40 x [25, 40] mm.
+      const double v = signed_volume(m);
+      EXPECT_GT(v, 0.75 * 2.5 * 40 * 25 * 0.9) << shapes::to_string(kind) << " " << seed;
+      EXPECT_LT(v, 1.25 * 2.5 * 40 * 40 * 1.1) << shapes::to_string(kind) << " " << seed;
+      const Mesh again = shapes::random_freeform(kind, seed, 24);
+      EXPECT_EQ(again.vertices, m.vertices);
+    }
+  EXPECT_NE(shapes::random_freeform(shapes::Freeform::shell, 1, 8).vertices,
+            shapes::random_freeform(shapes::Freeform::shell, 2, 8).vertices);
+  EXPECT_THROW(shapes::random_freeform(shapes::Freeform::shell, 1, 0), std::invalid_argument);
+}

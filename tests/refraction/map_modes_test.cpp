@@ -221,13 +221,13 @@ void expect_pixel_exact_boundaries(Scene& scene, const char* name) {
     EXPECT_EQ(reason_far, 0) << run;
     EXPECT_LE(reason_diff, reason_edges) << run;  // about one pixel along each such boundary
     if (exact_reasons) EXPECT_EQ(reason_diff, 0);
-    // The tolerance is checked at samples (two per cell, every known pixel of
+    // The tolerance is checked at samples (four per cell, every known pixel of
     // a fit), so single pixels may exceed it a little; without a chart the
     // interpolation is in 3D and sags off the surface between samples (see
     // WithoutAChartInterpolationIsLimitedBySurfaceSag).
     EXPECT_LE(p99, use_chart ? 1.25 : 2.0) << run;
     EXPECT_LE(mx, 3.0) << run;
-    EXPECT_LT(approx.stats.traced, exact.stats.traced / 4) << run;
+    EXPECT_LT(approx.stats.traced, exact.stats.traced / 2) << run;  // 4 checks at half the tolerance: 36 % on the bump plate at 640x480
   }
 }
 

@@ -44,4 +44,23 @@ Mesh spherical_shell(double r_in, double r_out, double cap_deg, int n_rings, int
 /// faces (4n^2 + 8n triangles). Same seed, same plate.
 Mesh bump_plate(double sx, double sy, double thickness, int n, int bumps, double bump_height, unsigned seed);
 
+/// Random freeform parts nobody tuned on (benchmarks and tests of the
+/// refraction map). Over x in [-sx/2, sx/2], y in [-sy/2, sy/2] (sx = 40 mm,
+/// sy uniform in [25, 40] mm), the contact surface ("contact", the skin side,
+/// facing down) is z = h(x, y) and the outer surface ("outer", facing the
+/// camera on +z) lies t(x, y) above it; "side" walls close the part. Both are
+/// drawn from std::mt19937(seed) (same seed, same part):
+/// - height_field: h is a sum of 6 random plane waves (wavelengths uniform in
+///   [0.4, 1.2]·sx, random directions and phases, amplitudes uniform in
+///   [0.3, 1]·0.5 mm), the outer surface is h + t straight above;
+/// - shell: h is a random quadric k1·x²/2 + k2·y²/2 (|k| uniform in
+///   [1/80, 1/25] per mm, each sign random: domes, bowls and saddles; rotated
+///   by a random angle) plus waves as above at a fifth of the amplitude, the
+///   outer surface offset by t along the contact surface's unit normal.
+/// t = 2.5 mm · (1 + 0.25·w) with w a normalised random wave sum in [-1, 1].
+/// `n` quads per edge on the big faces (4n² + 8n triangles).
+enum class Freeform { height_field, shell };
+Mesh random_freeform(Freeform kind, unsigned seed, int n);
+const char* to_string(Freeform kind);  ///< "height_field", "shell"
+
 }  // namespace clearfit::shapes

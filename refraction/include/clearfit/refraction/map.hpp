@@ -46,13 +46,14 @@ struct MapOptions {
   /// exact: every pixel traced. grid: cells of grid_step px with nine traced
   /// nodes (corners, edge midpoints, centre); cells whose nodes are all valid
   /// on one contact component are filled by quadratic interpolation, others
-  /// split. adaptive: like grid, but a cell is filled only if two exactly
-  /// traced check pixels (at 1/4 and 3/4 of its diagonal) are within
-  /// tolerance_um of the interpolation; otherwise it is split (quadtree).
+  /// split. adaptive: like grid, but a cell is filled only if four exactly
+  /// traced check pixels (its quadrants' centres, at 1/4 and 3/4 of both
+  /// diagonals) are within tolerance_um of the interpolation and its parent's
+  /// nodes and checks were all valid; otherwise it is split (quadtree).
   /// In both, a cell of 8 px or less that a validity boundary (or a change of
   /// contact component) crosses goes to the boundary resolver: the pixels on
-  /// both sides of every change of validity are traced, so validity
-  /// reason are pixel-exact, and the valid pixels behind them are filled from
+  /// both sides of every change of validity the nodes reveal are traced (a
+  /// valid sliver narrower than the node spacing can be missed), and the valid pixels behind them are filled from
   /// a least-squares quadratic through the traced valid pixels around the cell
   /// where it fits all of them within tolerance_um (traced otherwise). Where
   /// two invalid reasons meet, the pixels take their nearest node's reason
