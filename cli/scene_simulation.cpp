@@ -19,19 +19,23 @@ class SimulationParser {
   explicit SimulationParser(const SceneReader& r) : r_(r) {}
 
   void parse(const YAML::Node& s, SimulationSection& o) {
-    r_.only_keys(s, "simulation", {"seed", "out", "format", "scale", "timeline", "skin", "camera", "flicker", "motion", "pressure", "presses",
+    r_.only_keys(s, "simulation", {"seed", "out", "format", "crf", "scale", "timeline", "skin", "camera", "flicker", "motion", "pressure", "presses",
                                    "glare", "exposure"});
     if (auto v = r_.get<long long>(s, "seed", "simulation.seed", "a whole number")) {
       if (*v < 0) r_.fail(s["seed"], "simulation.seed", "expected a number >= 0");
       o.seed = static_cast<std::uint64_t>(*v);
     }
     if (auto v = r_.path(s, "out", "simulation.out")) o.out = *v;
-    if (auto v = r_.get<std::string>(s, "format", "simulation.format", "ffv1, huffyuv, mjpg or png")) {
+    if (auto v = r_.get<std::string>(s, "format", "simulation.format", "ffv1, huffyuv, mjpg, png or h264")) {
       try {
         o.format = sim::parse_video_format(*v);
       } catch (const std::invalid_argument&) {
-        r_.fail(s["format"], "simulation.format", "expected ffv1, huffyuv, mjpg or png, got '" + *v + "'");
+        r_.fail(s["format"], "simulation.format", "expected ffv1, huffyuv, mjpg, png or h264, got '" + *v + "'");
       }
+    }
+    if (auto v = r_.get<int>(s, "crf", "simulation.crf", "a whole number 0..51")) {
+      if (*v < 0 || *v > 51) r_.fail(s["crf"], "simulation.crf", "expected a whole number 0..51 (libx264's constant rate factor)");
+      o.timeline.crf = *v;
     }
     num(s, "scale", "simulation.scale", o.scale, 0.05, 4);
     if (const YAML::Node t = s["timeline"]) {

@@ -44,6 +44,7 @@ Run add_simulate(CLI::App& app) {
   struct Opts {
     std::string scene_file, out, format;
     long long seed = -1;
+    int crf = -1;
     double scale = 0;
     bool frames_only = false, no_presses = false, presses_only = false, quiet = false;
     Scene scene;
@@ -55,8 +56,10 @@ Run add_simulate(CLI::App& app) {
   sub->add_option("scene", o->scene_file, "Scene file (YAML) with a simulation: section")->required();
   sub->add_option("--out", o->out, "Output folder (default: simulation.out, else captures/ beside the scene)");
   sub->add_option("--seed", o->seed, "Random seed (noise, motion, presses); default simulation.seed or 1");
-  sub->add_option("--format", o->format, "Video format: huffyuv (lossless .mkv, default: fastest lossless to write and decode), ffv1 (lossless .mkv, smaller, 3x slower), mjpg (.avi, lossy: damages 0.5 % signals), png (frame folders)")
+  sub->add_option("--format", o->format, "Video format: huffyuv (lossless .mkv, default: fastest lossless to write and decode), ffv1 (lossless .mkv, smaller, 3x slower), mjpg (.avi, lossy: damages 0.5 % signals), png (frame folders), h264 (.mp4 as a phone films: libx264 at --crf, yuv420p, limited range, BT.709)")
       ->check(CLI::IsMember({"ffv1", "huffyuv", "mjpg", "png"}));
+  sub->add_option("--crf", o->crf, "h264 only: libx264's constant rate factor, 0 (lossless) .. 51 (default 23; phones film at about 18-28)")
+      ->check(CLI::Range(0, 51));
   sub->add_flag("--frames-only", o->frames_only, "Write folders of PNG frames instead of videos (same as --format png)");
   sub->add_option("--scale", o->scale, "Render at this fraction of the camera's resolution (writes the scaled camera.cameramodel)");
   sub->add_flag("--no-presses", o->no_presses, "Skip the calibration presses");
@@ -76,6 +79,7 @@ Run add_simulate(CLI::App& app) {
     if (o->seed >= 0) spec.seed = static_cast<std::uint64_t>(o->seed);
     if (!o->format.empty()) spec.format = sim::parse_video_format(o->format);
     if (o->frames_only) spec.format = sim::VideoFormat::png;
+    if (o->crf >= 0) spec.timeline.crf = o->crf;
     if (o->scale > 0) spec.scale = o->scale;
     if (!(spec.scale >= 0.05 && spec.scale <= 4)) throw InputError("", "--scale", "must be from 0.05 to 4");
     const std::filesystem::path out = !o->out.empty() ? std::filesystem::path(o->out)

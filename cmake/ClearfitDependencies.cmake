@@ -45,6 +45,14 @@ clearfit_require(yaml-cpp_FOUND "yaml-cpp" libyaml-cpp-dev)
 find_package(OpenCV QUIET COMPONENTS core imgproc imgcodecs videoio video calib3d)
 clearfit_require(OpenCV_FOUND "OpenCV (core imgproc imgcodecs videoio video calib3d)" libopencv-dev)
 
+# FFmpeg's libraries (OpenCV is built on them too): clearfit decodes videos itself, to honour
+# the colour matrix, range and rotation a phone writes and to decode on several threads.
+find_package(PkgConfig QUIET)
+if(PkgConfig_FOUND)
+  pkg_check_modules(FFMPEG QUIET IMPORTED_TARGET libavformat libavcodec libswscale libavutil)
+endif()
+clearfit_require(FFMPEG_FOUND "FFmpeg (libavformat libavcodec libswscale libavutil)" "libavformat-dev libavcodec-dev libswscale-dev")
+
 find_package(OpenSSL QUIET COMPONENTS Crypto)
 clearfit_require(OpenSSL_FOUND "OpenSSL (libcrypto, for input hashes)" libssl-dev)
 

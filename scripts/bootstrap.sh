@@ -11,7 +11,7 @@ cd "$(dirname "$0")/.."
 PACKAGES=(
   cmake ninja-build g++ pkg-config git
   libeigen3-dev libcgal-dev libopenmesh-dev libtinyobjloader-dev lib3mf-dev libzip-dev libtinygltf-dev
-  libembree-dev libtbb-dev libopencv-dev libapriltag-dev libmrcal-dev mrcal python3-mrcal python3-numpy
+  libembree-dev libtbb-dev libopencv-dev libavformat-dev libavcodec-dev libswscale-dev ffmpeg libapriltag-dev libmrcal-dev mrcal python3-mrcal python3-numpy
   nlohmann-json3-dev libyaml-cpp-dev libcli11-dev libgtest-dev libgmock-dev libbenchmark-dev libssl-dev libboost-dev
   slurm-wlm munge python3-sklearn libgetfem-dev
   chromium

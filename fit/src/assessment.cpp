@@ -48,6 +48,9 @@ PhaseReport phase_report(const CaptureSums& sums, const PhaseAverage& avg, bool 
   r.saturated_fraction = avg.saturated_fraction;
   r.mean_code = avg.mean_code;
   r.gain_min = avg.gain_min, r.gain_max = avg.gain_max, r.gain_sigma = avg.gain_sigma;
+  r.codec = sums.info.codec, r.pixel_format = sums.info.pixel_format, r.colour_matrix = sums.info.colour_matrix;
+  r.lossy = sums.info.lossy, r.limited_range = sums.info.limited_range;
+  r.rotation_deg = sums.info.rotation_deg, r.bit_depth = sums.info.bit_depth;
   return r;
 }
 
@@ -78,6 +81,16 @@ void check_glare(const GlareMask& g, const PhaseReport& base, const PhaseReport&
 }
 
 /// Warns about exposure changes inside a window (normalised) and unsure gain estimates.
+/// Lossy captures: which codec, and what the spatial noise term (blanching.hpp) did to the noise.
+void warn_lossy(Assessment& a) {
+  std::string codecs = a.baseline.codec + " (" + a.baseline.pixel_format + ")";
+  if (a.worn.source != a.baseline.source) codecs = "baseline " + codecs + ", worn " + a.worn.codec + " (" + a.worn.pixel_format + ")";
+  a.warnings.push_back("the capture is lossy: " + codecs + "; compression noise does not average away over frames, so the "
+                       "noise includes a spatial term of " + fmt(a.signal.spatial_noise_sigma, 4) +
+                       " (the unpressed skin's spread between the phases), raising it from " + fmt(a.signal.temporal_noise_sigma, 4) +
+                       " to " + fmt(a.signal.noise_sigma, 4) + "; film losslessly (or at the highest quality) to see weaker pressure");
+}
+
 void warn_gains(const PhaseReport& p, const std::string& role, std::vector<std::string>& warnings) {
   if (p.gain_max / std::max(p.gain_min, 1e-9) > 1.02)
     warnings.push_back("the exposure or white balance changed by " + fmt(100 * (p.gain_max / p.gain_min - 1)) + " % during the " + role +
@@ -200,7 +213,9 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
   a.glare_texels = glare_texels(a.glare, inv, worn_avg.residual_shift_px);
   BlanchingOptions bo = o.blanching;
   if (!a.glare.empty()) bo.excluded = a.glare_texels;
+  bo.spatial_noise = a.baseline.lossy || a.worn.lossy;
   a.signal = compute_blanching(base_avg, worn_avg, inv, bo);
+  if (bo.spatial_noise) warn_lossy(a);
   for (const auto& w : a.signal.warnings) a.warnings.push_back(w);
   const ChartGrid& g = a.signal.y.grid;
   a.raster = rasterize_chart(*scene.mesh, *scene.chart, g);

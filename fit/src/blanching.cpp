@@ -41,6 +41,41 @@ double pixels_per_texel(const InverseMap& inv) {
   return std::isfinite(m) && m > 0 ? m : 1.0;
 }
 
+/// Robust spread of the smoothed feature over the seen texels (the unpressed majority: 3-MAD
+/// clipping around the median, the clipped Gaussian's SD corrected); what the frames' spread
+/// does not explain is added to every texel's sigma in quadrature.
+void add_spatial_noise(BlanchingSignal& s) {
+  std::vector<double> y;
+  for (float v : s.y.value)
+    if (std::isfinite(v)) y.push_back(v);
+  if (y.size() < 10) return;
+  double m = median(y), sd = 0;
+  for (int iter = 0; iter < 5; ++iter) {
+    std::vector<double> dev;
+    dev.reserve(y.size());
+    for (double v : y) dev.push_back(std::abs(v - m));
+    const double mad = 1.4826 * median(dev);
+    if (!(mad > 0)) return;
+    std::vector<double> kept;
+    for (double v : y)
+      if (std::abs(v - m) <= 3 * mad) kept.push_back(v);
+    double sum = 0, sum2 = 0;
+    for (double v : kept) sum += v, sum2 += v * v;
+    m = sum / kept.size();
+    sd = std::sqrt(std::max(0.0, sum2 / kept.size() - m * m)) / 0.9866;  // SD of a Gaussian clipped at ±3σ
+  }
+  const double extra2 = sd * sd - s.temporal_noise_sigma * s.temporal_noise_sigma;
+  if (!(extra2 > 0)) return;
+  s.spatial_noise_sigma = std::sqrt(extra2);
+  std::vector<double> sig;
+  for (auto& v : s.sigma_y.value)
+    if (std::isfinite(v)) {
+      v = static_cast<float>(std::sqrt(v * v + extra2));
+      sig.push_back(v);
+    }
+  s.noise_sigma = median(std::move(sig));
+}
+
 }  // namespace
 
 ChartField resample_to_chart(const PhaseAverage& average, const InverseMap& inverse) {
@@ -173,7 +208,8 @@ BlanchingSignal compute_blanching(const PhaseAverage& baseline, const PhaseAvera
       v *= reduction;
       sig.push_back(v);
     }
-  s.noise_sigma = median(std::move(sig));
+  s.noise_sigma = s.temporal_noise_sigma = median(std::move(sig));
+  if (options.spatial_noise) add_spatial_noise(s);
   long long above = 0;
   for (std::size_t k = 0; k < g.size(); ++k)
     if (std::isfinite(s.y.value[k]) && s.y.value[k] > 3 * std::max(s.sigma_y.value[k], 1e-6f)) ++above;

@@ -18,6 +18,7 @@
 #include <tbb/parallel_for.h>
 #include <tbb/task_group.h>
 #include <thread>
+#include <type_traits>
 
 namespace clearfit {
 namespace {
@@ -94,6 +95,15 @@ class FrameQueue {
   std::thread thread_;
 };
 
+/// A 16-bit frame (16-bit PNG/TIFF, 10-bit video) is kept as `deep` for the green sums and
+/// replaced by its 8-bit rounding for everything else; an 8-bit frame gives an empty Mat.
+cv::Mat deep_frame(cv::Mat& frame) {
+  if (frame.depth() != CV_16U) return {};
+  cv::Mat deep = frame;
+  deep.convertTo(frame, CV_8U, 1.0 / 257.0);
+  return deep;
+}
+
 /// Linear green of a patch of a BGR8 frame, as CV_32F.
 cv::Mat linear_green_patch(const cv::Mat& bgr, const cv::Rect& rect) {
   const float* lut = srgb::to_linear_table8();
@@ -154,6 +164,7 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
     if (!queue.pop(frame, name)) break;
     sums.read_ms += ms_since(t_wait);
     const auto t_work = Clock::now();
+    const cv::Mat deep = deep_frame(frame);  // 16-bit frames: the green sums read every bit, the rest 8 bits
     // Motion: content displacement of this frame against the reference, measured (ECC on a
     // task of its own) while the frame is accumulated at the previous frame's integer shift;
     // in the rare frame whose integer shift changes, the frame is moved afterwards.
@@ -192,20 +203,24 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
     cv::Mat& acc = sums.chunk_sum[chunk];
     // Adds (sign +1) or removes (-1) the frame's linear green at integer shift d; with
     // `stats`, also the per-row block sums, saturated pixels and green codes.
-    auto accumulate = [&](cv::Point d, float sign, bool stats) {
+    // Pixel type Px: 8-bit codes through the 256-entry table, 16-bit through the 65536-entry one;
+    // the statistics count codes at full scale as saturated and the mean code in 8-bit units.
+    auto accumulate_typed = [&](auto px_type, const cv::Mat& img, const float* table, cv::Point d, float sign, bool stats) {
+    using Px = typename decltype(px_type)::type;
+    constexpr int code_max = sizeof(typename Px::value_type) == 1 ? 255 : 65535, code_shift = code_max == 255 ? 0 : 8;
     tbb::parallel_for(tbb::blocked_range<int>(0, roi.height, 16), [&](const tbb::blocked_range<int>& rows) {
       for (int y = rows.begin(); y < rows.end(); ++y) {
         // Aligned pixel (x, y) of the roi reads the frame at (x, y) + d (clamped at the image edge).
         const int sy = std::clamp(roi.y + y + d.y, 0, info.height - 1);
-        const auto* src = frame.ptr<cv::Vec3b>(sy);
+        const auto* src = img.ptr<Px>(sy);
         float* dst = acc.ptr<float>(y);
         const int lo_all = std::clamp(-(roi.x + d.x), 0, roi.width);
         const int hi_all = std::clamp(info.width - (roi.x + d.x), lo_all, roi.width);
         if (!stats || (y & 1) != 0) {  // statistics come from every other row; the sum from all
-          const float first = sign * lut[src[0][1]], last = sign * lut[src[info.width - 1][1]];
-          const cv::Vec3b* row = src + roi.x + d.x;
+          const float first = sign * table[src[0][1]], last = sign * table[src[info.width - 1][1]];
+          const Px* row = src + roi.x + d.x;
           for (int x = 0; x < lo_all; ++x) dst[x] += first;
-          for (int x = lo_all; x < hi_all; ++x) dst[x] += sign * lut[row[x][1]];
+          for (int x = lo_all; x < hi_all; ++x) dst[x] += sign * table[row[x][1]];
           for (int x = hi_all; x < roi.width; ++x) dst[x] += last;
           continue;
         }
@@ -218,12 +233,12 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
           const int lo = std::clamp(-(roi.x + d.x), x0, x1), hi = std::clamp(info.width - (roi.x + d.x), lo, x1);
           float sum = 0.f;
           auto add = [&](int x, int sx) {
-            const std::uint8_t g = src[sx][1];
-            const float v = lut[g];
+            const int g = src[sx][1];
+            const float v = table[g];
             dst[x] += sign * v;
             sum += v;
-            saturated += g == 255;
-            code += g;
+            saturated += g == code_max;
+            code += g >> code_shift;
           };
           for (int x = x0; x < lo; ++x) add(x, 0);
           for (int x = lo; x < hi; ++x) add(x, roi.x + d.x + x);
@@ -235,6 +250,12 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
         row_code[y] = code;
       }
     });
+    };
+    auto accumulate = [&](cv::Point d, float sign, bool stats) {
+      if (deep.empty())
+        accumulate_typed(std::type_identity<cv::Vec3b>(), frame, lut, d, sign, stats);
+      else
+        accumulate_typed(std::type_identity<cv::Vec3w>(), deep, srgb::to_linear_table16(), d, sign, stats);
     };
     accumulate(d_prev, 1.f, true);
     registration.wait();

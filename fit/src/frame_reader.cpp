@@ -2,26 +2,209 @@
 #include <cctype>
 #include <clearfit/error.hpp>
 #include <clearfit/fit/frame_reader.hpp>
+#include <cmath>
+#include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
-#include <opencv2/videoio.hpp>
+#include <thread>
+
+extern "C" {
+#include <libavcodec/avcodec.h>
+#include <libavformat/avformat.h>
+#include <libavutil/display.h>
+#include <libavutil/pixdesc.h>
+#include <libswscale/swscale.h>
+}
 
 namespace clearfit {
 namespace {
 
-bool is_image_file(const std::filesystem::path& p) {
+std::string lower_extension(const std::filesystem::path& p) {
   std::string ext = p.extension().string();
   std::transform(ext.begin(), ext.end(), ext.begin(), [](unsigned char c) { return std::tolower(c); });
+  return ext;
+}
+
+bool is_image_file(const std::filesystem::path& p) {
+  const std::string ext = lower_extension(p);
   return ext == ".png" || ext == ".jpg" || ext == ".jpeg" || ext == ".tif" || ext == ".tiff" || ext == ".bmp";
+}
+
+std::string av_message(int err) {
+  char buf[AV_ERROR_MAX_STRING_SIZE] = {};
+  av_strerror(err, buf, sizeof buf);
+  return buf;
+}
+
+/// The full-range twin of FFmpeg's deprecated "J" formats (yuvj420p is yuv420p in full range).
+AVPixelFormat unjpeg(AVPixelFormat f, bool& full_range) {
+  switch (f) {
+    case AV_PIX_FMT_YUVJ420P: full_range = true; return AV_PIX_FMT_YUV420P;
+    case AV_PIX_FMT_YUVJ422P: full_range = true; return AV_PIX_FMT_YUV422P;
+    case AV_PIX_FMT_YUVJ444P: full_range = true; return AV_PIX_FMT_YUV444P;
+    case AV_PIX_FMT_YUVJ440P: full_range = true; return AV_PIX_FMT_YUV440P;
+    default: return f;
+  }
+}
+
+/// Clockwise degrees (0, 90, 180, 270) that turn the coded frames upright, from the display matrix.
+int stream_rotation(const AVStream* st) {
+  const std::uint8_t* m = av_stream_get_side_data(st, AV_PKT_DATA_DISPLAYMATRIX, nullptr);
+  if (m == nullptr) return 0;
+  const double ccw = av_display_rotation_get(reinterpret_cast<const std::int32_t*>(m));  // counter-clockwise
+  if (!std::isfinite(ccw)) return 0;
+  const int cw = static_cast<int>(std::lround(-ccw / 90.0)) * 90;
+  return ((cw % 360) + 360) % 360;
 }
 
 }  // namespace
 
+/// A video decoded by FFmpeg on several threads, converted with the stream's colour matrix and range.
+struct VideoDecoder {
+  AVFormatContext* format = nullptr;
+  AVCodecContext* codec = nullptr;
+  SwsContext* sws = nullptr;
+  AVPacket* packet = nullptr;
+  AVFrame* frame = nullptr;
+  int stream = -1;
+  bool draining = false, finished = false;
+  int sws_w = 0, sws_h = 0;
+  AVPixelFormat sws_fmt = AV_PIX_FMT_NONE;
+  bool sixteen = false;
+
+  ~VideoDecoder() {
+    sws_freeContext(sws);
+    av_frame_free(&frame);
+    av_packet_free(&packet);
+    avcodec_free_context(&codec);
+    avformat_close_input(&format);
+  }
+
+  void open(const std::filesystem::path& source, CaptureInfo& info) {
+    const std::string src = source.string();
+    auto fail = [&](const std::string& what) {
+      throw InputError(src, "", "cannot be opened as a video (" + what + ")",
+                       "give a video FFmpeg reads (e.g. .mp4, .mov, .mkv, .avi) or a folder of images");
+    };
+    av_log_set_level(AV_LOG_ERROR);
+    if (int e = avformat_open_input(&format, src.c_str(), nullptr, nullptr); e < 0) fail(av_message(e));
+    if (int e = avformat_find_stream_info(format, nullptr); e < 0) fail(av_message(e));
+    const AVCodec* dec = nullptr;
+    stream = av_find_best_stream(format, AVMEDIA_TYPE_VIDEO, -1, -1, &dec, 0);
+    if (stream < 0 || dec == nullptr) fail("no video stream FFmpeg can decode");
+    AVStream* st = format->streams[stream];
+    codec = avcodec_alloc_context3(dec);
+    if (codec == nullptr || avcodec_parameters_to_context(codec, st->codecpar) < 0) fail("codec parameters");
+    codec->thread_count = static_cast<int>(std::clamp(std::thread::hardware_concurrency(), 1u, 8u));
+    codec->thread_type = FF_THREAD_FRAME | FF_THREAD_SLICE;
+    if (int e = avcodec_open2(codec, dec, nullptr); e < 0) fail(av_message(e));
+    packet = av_packet_alloc();
+    frame = av_frame_alloc();
+    info.is_video = true;
+    const AVRational fr = av_guess_frame_rate(format, st, nullptr);
+    info.fps = fr.num > 0 && fr.den > 0 ? av_q2d(fr) : 0;
+    if (!(info.fps > 0 && info.fps < 10000)) info.fps = 0;
+    info.frames = static_cast<int>(st->nb_frames);
+    if (info.frames <= 0 && info.fps > 0 && format->duration > 0)
+      info.frames = static_cast<int>(std::lround(format->duration / double(AV_TIME_BASE) * info.fps));
+    const AVCodecDescriptor* desc = avcodec_descriptor_get(codec->codec_id);
+    info.codec = desc != nullptr ? desc->name : dec->name;
+    info.lossy = desc != nullptr && (desc->props & AV_CODEC_PROP_LOSSY) != 0;
+    info.rotation_deg = stream_rotation(st);
+    const bool quarter = info.rotation_deg == 90 || info.rotation_deg == 270;
+    info.width = quarter ? codec->height : codec->width;
+    info.height = quarter ? codec->width : codec->height;
+    const AVPixFmtDescriptor* pd = av_pix_fmt_desc_get(codec->pix_fmt);
+    info.pixel_format = pd != nullptr ? pd->name : "unknown";
+    info.bit_depth = pd != nullptr ? pd->comp[0].depth : 8;
+    sixteen = info.bit_depth > 8;
+    describe_colour(codec->colorspace, codec->color_range, codec->pix_fmt, codec->height, info);
+  }
+
+  /// The matrix and range the frames are converted with (what the stream declares; untagged: by size).
+  static int describe_colour(AVColorSpace space, AVColorRange range, AVPixelFormat fmt, int coded_height, CaptureInfo& info) {
+    const AVPixFmtDescriptor* pd = av_pix_fmt_desc_get(fmt);
+    const bool rgb = pd != nullptr && (pd->flags & AV_PIX_FMT_FLAG_RGB) != 0;
+    bool full = range == AVCOL_RANGE_JPEG;
+    unjpeg(fmt, full);
+    info.limited_range = !rgb && !full;
+    int cs = SWS_CS_ITU601;
+    switch (space) {
+      case AVCOL_SPC_BT709: cs = SWS_CS_ITU709; break;
+      case AVCOL_SPC_BT470BG:
+      case AVCOL_SPC_SMPTE170M: cs = SWS_CS_ITU601; break;
+      case AVCOL_SPC_BT2020_NCL:
+      case AVCOL_SPC_BT2020_CL: cs = SWS_CS_BT2020; break;
+      case AVCOL_SPC_SMPTE240M: cs = SWS_CS_SMPTE240M; break;
+      case AVCOL_SPC_FCC: cs = SWS_CS_FCC; break;
+      default: cs = coded_height >= 720 ? SWS_CS_ITU709 : SWS_CS_ITU601;  // what players assume for untagged video
+    }
+    info.colour_matrix = rgb ? "rgb" : cs == SWS_CS_ITU709 ? "bt709" : cs == SWS_CS_BT2020 ? "bt2020" : cs == SWS_CS_SMPTE240M ? "smpte240m" : cs == SWS_CS_FCC ? "fcc" : "bt601";
+    return cs;
+  }
+
+  /// Decodes the next frame into `frame`; false at the end of the stream.
+  bool decode(const std::string& src) {
+    for (;;) {
+      const int r = avcodec_receive_frame(codec, frame);
+      if (r == 0) return true;
+      if (r == AVERROR_EOF) return false;
+      if (r != AVERROR(EAGAIN)) throw InputError(src, "", "cannot be decoded: " + av_message(r), "check the video file");
+      if (draining) return false;
+      const int e = av_read_frame(format, packet);
+      if (e == AVERROR_EOF || e < 0) {
+        draining = true;
+        avcodec_send_packet(codec, nullptr);
+        continue;
+      }
+      if (packet->stream_index == stream) {
+        const int s = avcodec_send_packet(codec, packet);
+        if (s < 0 && s != AVERROR(EAGAIN) && s != AVERROR_INVALIDDATA)
+          throw InputError(src, "", "cannot be decoded: " + av_message(s), "check the video file");
+      }
+      av_packet_unref(packet);
+    }
+  }
+
+  bool read(const std::string& src, CaptureInfo& info, cv::Mat& out) {
+    if (finished) return false;
+    if (!decode(src)) return finished = true, false;
+    const int w = frame->width, h = frame->height;
+    auto fmt = static_cast<AVPixelFormat>(frame->format);
+    if (sws == nullptr || w != sws_w || h != sws_h || fmt != sws_fmt) {
+      sws_freeContext(sws);
+      bool full = frame->color_range == AVCOL_RANGE_JPEG;
+      const AVPixelFormat src_fmt = unjpeg(fmt, full);
+      const int cs = describe_colour(frame->colorspace, full ? AVCOL_RANGE_JPEG : frame->color_range, fmt, h, info);
+      sws = sws_getContext(w, h, src_fmt, w, h, sixteen ? AV_PIX_FMT_BGR48 : AV_PIX_FMT_BGR24,
+                           SWS_BILINEAR | SWS_ACCURATE_RND | SWS_FULL_CHR_H_INT | SWS_FULL_CHR_H_INP, nullptr, nullptr, nullptr);
+      if (sws == nullptr) throw InputError(src, "", "has a pixel format clearfit cannot convert (" + info.pixel_format + ")");
+      // Source matrix and range as declared; destination full-range RGB.
+      sws_setColorspaceDetails(sws, sws_getCoefficients(cs), info.limited_range ? 0 : 1, sws_getCoefficients(SWS_CS_DEFAULT), 1, 0,
+                               1 << 16, 1 << 16);
+      sws_w = w, sws_h = h, sws_fmt = fmt;
+    }
+    cv::Mat coded(h, w, sixteen ? CV_16UC3 : CV_8UC3);
+    std::uint8_t* dst[4] = {coded.data, nullptr, nullptr, nullptr};
+    int dst_stride[4] = {static_cast<int>(coded.step[0]), 0, 0, 0};
+    sws_scale(sws, frame->data, frame->linesize, 0, h, dst, dst_stride);
+    av_frame_unref(frame);
+    switch (info.rotation_deg) {
+      case 90: cv::rotate(coded, out, cv::ROTATE_90_CLOCKWISE); break;
+      case 180: cv::rotate(coded, out, cv::ROTATE_180); break;
+      case 270: cv::rotate(coded, out, cv::ROTATE_90_COUNTERCLOCKWISE); break;
+      default: out = coded;
+    }
+    return true;
+  }
+};
+
 struct FrameReader::Impl {
   CaptureInfo info;
-  cv::VideoCapture video;
+  std::unique_ptr<VideoDecoder> video;
   std::vector<std::filesystem::path> files;
   int next = 0;
+  int depth = CV_8U;
   std::string last_name;
 };
 
@@ -42,16 +225,19 @@ FrameReader::FrameReader(const std::filesystem::path& source) : impl_(std::make_
     if (first.empty()) throw InputError(m.files.front().string(), "", "cannot be read as an image");
     m.info.width = first.cols;
     m.info.height = first.rows;
+    m.depth = first.depth();
+    if (m.depth != CV_8U && m.depth != CV_16U)
+      throw InputError(m.files.front().string(), "", "is neither an 8-bit nor a 16-bit image",
+                       "captures are 8- or 16-bit sRGB frames as a camera or raw converter writes them");
+    m.info.bit_depth = m.depth == CV_16U ? 16 : 8;
+    const std::string ext = lower_extension(m.files.front());
+    m.info.codec = ext == ".jpg" || ext == ".jpeg" ? "jpeg" : ext == ".tif" || ext == ".tiff" ? "tiff" : ext.substr(1);
+    m.info.lossy = m.info.codec == "jpeg";
+    m.info.colour_matrix = "rgb";
   } else {
-    m.info.is_video = true;
-    if (!m.video.open(source.string(), cv::CAP_FFMPEG) || !m.video.isOpened())
-      throw InputError(source.string(), "", "cannot be opened as a video",
-                       "give a video FFmpeg reads (e.g. .mp4, .mkv, .avi) or a folder of images");
-    m.info.fps = m.video.get(cv::CAP_PROP_FPS);
-    m.info.frames = static_cast<int>(m.video.get(cv::CAP_PROP_FRAME_COUNT));
-    m.info.width = static_cast<int>(m.video.get(cv::CAP_PROP_FRAME_WIDTH));
-    m.info.height = static_cast<int>(m.video.get(cv::CAP_PROP_FRAME_HEIGHT));
-    if (!(m.info.fps > 0 && m.info.fps < 10000)) m.info.fps = 0;
+    m.video = std::make_unique<VideoDecoder>();
+    m.video->open(source, m.info);
+    m.depth = m.info.bit_depth > 8 ? CV_16U : CV_8U;
   }
 }
 
@@ -64,8 +250,8 @@ std::string FrameReader::frame_name() const { return impl_->last_name; }
 bool FrameReader::read(cv::Mat& bgr) {
   Impl& m = *impl_;
   cv::Mat frame;
-  if (m.info.is_video) {
-    if (!m.video.read(frame) || frame.empty()) return false;
+  if (m.video) {
+    if (!m.video->read(m.info.source.string(), m.info, frame)) return false;
     m.last_name = "frame " + std::to_string(m.next);
   } else {
     if (m.next >= static_cast<int>(m.files.size())) return false;
@@ -73,8 +259,10 @@ bool FrameReader::read(cv::Mat& bgr) {
     frame = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
     m.last_name = file.filename().string();
     if (frame.empty()) throw InputError(file.string(), "", "cannot be read as an image");
-    if (frame.depth() != CV_8U)
-      throw InputError(file.string(), "", "is not an 8-bit image", "captures are 8-bit sRGB frames as a camera writes them");
+    if (frame.depth() != m.depth)
+      throw InputError(file.string(), "", std::string("is ") + (frame.depth() == CV_8U ? "8" : frame.depth() == CV_16U ? "16" : "neither 8 nor 16") +
+                                              "-bit, the capture's first frame is " + std::to_string(m.info.bit_depth) + "-bit",
+                       "all frames of a capture must have one bit depth");
   }
   if (frame.cols != m.info.width || frame.rows != m.info.height)
     throw InputError(m.info.source.string(), m.last_name,

@@ -229,6 +229,10 @@ void write_truth(const std::filesystem::path& dir, const PressureFieldSpec& spec
       {"calibration", calibration_json(skin)},
       {"video",
        {{"format", to_string(format)},
+        {"codec", format == VideoFormat::h264
+                      ? json{{"encoder", "libx264"}, {"crf", tl.crf}, {"preset", "fast"}, {"pixel_format", "yuv420p"},
+                             {"range", "limited"}, {"matrix", "bt709"}, {"keyframe_interval_s", 1}}
+                      : json{{"lossy", format == VideoFormat::mjpg}}},
         {"fps", tl.fps},
         {"width", size.width},
         {"height", size.height},

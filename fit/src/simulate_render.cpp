@@ -9,6 +9,12 @@
 #include <opencv2/videoio.hpp>
 #include <tbb/parallel_for.h>
 
+extern "C" {
+#include <libavcodec/avcodec.h>
+#include <libavformat/avformat.h>
+#include <libswscale/swscale.h>
+}
+
 #include <chrono>
 #include <cmath>
 #include <future>
@@ -62,6 +68,7 @@ void Timeline::validate() const {
   if (!(fps > 0 && fps <= 1000)) throw std::invalid_argument("Timeline.fps must be in (0, 1000]");
   if (!(baseline_s > 0 && press_s > 0) || baseline_frames() < 1 || press_frames() < 1)
     throw std::invalid_argument("Timeline: baseline_s and press_s must give at least one frame each");
+  if (crf < 0 || crf > 51) throw std::invalid_argument("Timeline.crf must be in 0..51");
 }
 
 CaptureRenderer::CaptureRenderer(const RefractionMap& map, const ChartField& drive, const SkinParameters& skin,
@@ -265,7 +272,8 @@ VideoFormat parse_video_format(const std::string& name) {
   if (name == "huffyuv") return VideoFormat::huffyuv;
   if (name == "mjpg") return VideoFormat::mjpg;
   if (name == "png") return VideoFormat::png;
-  throw std::invalid_argument("unknown video format '" + name + "' (ffv1, huffyuv, mjpg, png)");
+  if (name == "h264") return VideoFormat::h264;
+  throw std::invalid_argument("unknown video format '" + name + "' (ffv1, huffyuv, mjpg, png, h264)");
 }
 std::string to_string(VideoFormat f) {
   switch (f) {
@@ -273,6 +281,7 @@ std::string to_string(VideoFormat f) {
     case VideoFormat::huffyuv: return "huffyuv";
     case VideoFormat::mjpg: return "mjpg";
     case VideoFormat::png: return "png";
+    case VideoFormat::h264: return "h264";
   }
   return "?";
 }
@@ -282,6 +291,7 @@ std::string capture_name(const std::string& stem, VideoFormat f) {
     case VideoFormat::huffyuv: return stem + ".mkv";
     case VideoFormat::mjpg: return stem + ".avi";
     case VideoFormat::png: return stem;
+    case VideoFormat::h264: return stem + ".mp4";
   }
   return stem;
 }
@@ -290,7 +300,94 @@ struct CaptureWriter::Video {
   cv::VideoWriter writer;
 };
 
-CaptureWriter::CaptureWriter(const std::filesystem::path& path, VideoFormat format, double fps, cv::Size size)
+/// H.264 as a phone writes it: libx264 at a constant rate factor, yuv420p, limited range, BT.709.
+struct CaptureWriter::H264 {
+  AVFormatContext* format = nullptr;
+  AVCodecContext* codec = nullptr;
+  AVStream* stream = nullptr;
+  SwsContext* sws = nullptr;
+  AVFrame* frame = nullptr;
+  AVPacket* packet = nullptr;
+  std::int64_t pts = 0;
+  bool header = false;
+  std::string name;
+
+  H264(const std::filesystem::path& temp, const std::filesystem::path& path, double fps, cv::Size size, int crf) : name(path.string()) {
+    auto fail = [&](const std::string& what) { throw InputError(name, "", "cannot write H.264: " + what, "pick another simulation.format (png always works)"); };
+    if (size.width % 2 != 0 || size.height % 2 != 0) fail("yuv420p needs an even width and height, the image is " + std::to_string(size.width) + "x" + std::to_string(size.height));
+    if (crf < 0 || crf > 51) fail("the CRF must be 0..51, got " + std::to_string(crf));
+    const AVCodec* enc = avcodec_find_encoder_by_name("libx264");
+    if (enc == nullptr) fail("FFmpeg has no libx264 encoder");
+    if (avformat_alloc_output_context2(&format, nullptr, "mp4", temp.string().c_str()) < 0) fail("no mp4 muxer");
+    stream = avformat_new_stream(format, nullptr);
+    codec = avcodec_alloc_context3(enc);
+    codec->width = size.width;
+    codec->height = size.height;
+    codec->pix_fmt = AV_PIX_FMT_YUV420P;
+    codec->framerate = av_d2q(fps, 100000);
+    codec->time_base = av_inv_q(codec->framerate);
+    codec->gop_size = std::max(1, static_cast<int>(std::lround(fps)));
+    codec->color_range = AVCOL_RANGE_MPEG;
+    codec->colorspace = AVCOL_SPC_BT709;
+    codec->color_primaries = AVCOL_PRI_BT709;
+    codec->color_trc = AVCOL_TRC_BT709;
+    if (format->oformat->flags & AVFMT_GLOBALHEADER) codec->flags |= AV_CODEC_FLAG_GLOBAL_HEADER;
+    AVDictionary* opts = nullptr;
+    av_dict_set(&opts, "crf", std::to_string(crf).c_str(), 0);
+    av_dict_set(&opts, "preset", "fast", 0);
+    const int opened = avcodec_open2(codec, enc, &opts);
+    av_dict_free(&opts);
+    if (opened < 0) fail("libx264 does not open");
+    avcodec_parameters_from_context(stream->codecpar, codec);
+    stream->time_base = codec->time_base;
+    if (avio_open(&format->pb, temp.string().c_str(), AVIO_FLAG_WRITE) < 0) fail("the file cannot be created");
+    if (avformat_write_header(format, nullptr) < 0) fail("the header cannot be written");
+    header = true;
+    frame = av_frame_alloc();
+    frame->format = codec->pix_fmt;
+    frame->width = size.width;
+    frame->height = size.height;
+    if (av_frame_get_buffer(frame, 0) < 0) fail("no memory for a frame");
+    packet = av_packet_alloc();
+    sws = sws_getContext(size.width, size.height, AV_PIX_FMT_BGR24, size.width, size.height, AV_PIX_FMT_YUV420P,
+                         SWS_BICUBIC | SWS_ACCURATE_RND | SWS_FULL_CHR_H_INP, nullptr, nullptr, nullptr);
+    if (sws == nullptr) fail("no BGR to YUV conversion");
+    // Full-range RGB in; BT.709 limited-range YUV out.
+    sws_setColorspaceDetails(sws, sws_getCoefficients(SWS_CS_ITU709), 1, sws_getCoefficients(SWS_CS_ITU709), 0, 0, 1 << 16, 1 << 16);
+  }
+  ~H264() {
+    if (format != nullptr && format->pb != nullptr) avio_closep(&format->pb);
+    sws_freeContext(sws);
+    av_packet_free(&packet);
+    av_frame_free(&frame);
+    avcodec_free_context(&codec);
+    avformat_free_context(format);
+  }
+  void drain() {
+    while (avcodec_receive_packet(codec, packet) == 0) {
+      av_packet_rescale_ts(packet, codec->time_base, stream->time_base);
+      packet->stream_index = stream->index;
+      if (av_interleaved_write_frame(format, packet) < 0) throw InputError(name, "", "cannot write an H.264 packet (disk full?)");
+    }
+  }
+  void write(const cv::Mat& bgr) {
+    if (av_frame_make_writable(frame) < 0) throw InputError(name, "", "no memory for an H.264 frame");
+    const std::uint8_t* src[1] = {bgr.data};
+    const int stride[1] = {static_cast<int>(bgr.step[0])};
+    sws_scale(sws, src, stride, 0, bgr.rows, frame->data, frame->linesize);
+    frame->pts = pts++;
+    if (avcodec_send_frame(codec, frame) < 0) throw InputError(name, "", "libx264 refused a frame");
+    drain();
+  }
+  void finish() {
+    avcodec_send_frame(codec, nullptr);
+    drain();
+    if (av_write_trailer(format) < 0) throw InputError(name, "", "cannot finish the mp4 file");
+    avio_closep(&format->pb);
+  }
+};
+
+CaptureWriter::CaptureWriter(const std::filesystem::path& path, VideoFormat format, double fps, cv::Size size, int crf)
     : path_(path), format_(format) {
   std::ostringstream temp_name;
   temp_name << '.' << path.filename().string() << ".tmp" << splitmix(reinterpret_cast<std::uintptr_t>(this)) % 1000000
@@ -300,6 +397,10 @@ CaptureWriter::CaptureWriter(const std::filesystem::path& path, VideoFormat form
   if (format == VideoFormat::png) {
     std::filesystem::create_directories(temp_, ec);
     if (ec) throw InputError(path.string(), "", "cannot create the frame folder: " + ec.message());
+    return;
+  }
+  if (format == VideoFormat::h264) {
+    h264_ = std::make_unique<H264>(temp_, path, fps, size, crf);
     return;
   }
   const int fourcc = format == VideoFormat::ffv1 ? cv::VideoWriter::fourcc('F', 'F', 'V', '1')
@@ -316,6 +417,7 @@ CaptureWriter::CaptureWriter(const std::filesystem::path& path, VideoFormat form
 CaptureWriter::~CaptureWriter() {
   if (done_) return;
   if (video_) video_->writer.release();
+  h264_.reset();
   std::error_code ec;
   std::filesystem::remove_all(temp_, ec);
 }
@@ -326,6 +428,8 @@ void CaptureWriter::write(const cv::Mat& frame) {
     std::snprintf(name, sizeof name, "frame_%05d.png", frames_);
     if (!cv::imwrite((temp_ / name).string(), frame, {cv::IMWRITE_PNG_COMPRESSION, 1}))
       throw InputError((path_ / name).string(), "", "cannot write the frame");
+  } else if (h264_) {
+    h264_->write(frame);
   } else {
     video_->writer.write(frame);
   }
@@ -334,6 +438,7 @@ void CaptureWriter::write(const cv::Mat& frame) {
 
 void CaptureWriter::finish() {
   if (video_) video_->writer.release();
+  if (h264_) h264_->finish(), h264_.reset();
   std::error_code ec;
   if (std::filesystem::exists(path_)) std::filesystem::remove_all(path_, ec);
   std::filesystem::rename(temp_, path_, ec);
@@ -365,7 +470,7 @@ CaptureSummary render_captures(const CaptureRenderer& r, const SkinParameters& s
   } else {
     sum.files = {capture_name("baseline", format), capture_name("worn", format)};
   }
-  for (const auto& f : sum.files) writers.push_back(std::make_unique<CaptureWriter>(dir / f, format, tl.fps, size));
+  for (const auto& f : sum.files) writers.push_back(std::make_unique<CaptureWriter>(dir / f, format, tl.fps, size, tl.crf));
   std::future<void> pending;
   for (int k = 0; k < total; ++k) {
     const double t = k / tl.fps, t_press = sum.baseline_frames / tl.fps;

@@ -2,6 +2,7 @@
 #include <array>
 #include <clearfit/fit/srgb.hpp>
 #include <cmath>
+#include <vector>
 
 namespace clearfit::srgb {
 
@@ -18,6 +19,15 @@ const float* to_linear_table8() {
   static const std::array<float, 256> table = [] {
     std::array<float, 256> t{};
     for (int v = 0; v < 256; ++v) t[v] = static_cast<float>(to_linear(v / 255.0));
+    return t;
+  }();
+  return table.data();
+}
+
+const float* to_linear_table16() {
+  static const std::vector<float> table = [] {
+    std::vector<float> t(65536);
+    for (int v = 0; v < 65536; ++v) t[v] = static_cast<float>(to_linear(v / 65535.0));
     return t;
   }();
   return table.data();

@@ -46,7 +46,14 @@ json phase_json(const PhaseReport& p) {
           {"saturated_fraction", num(p.saturated_fraction)},
           {"mean_green_code", num(p.mean_code)},
           {"chunk_gain_range", {num(p.gain_min), num(p.gain_max)}},
-          {"chunk_gain_sigma", num(p.gain_sigma)}};
+          {"chunk_gain_sigma", num(p.gain_sigma)},
+          {"codec", p.codec},
+          {"lossy", p.lossy},
+          {"pixel_format", p.pixel_format},
+          {"colour_matrix", p.colour_matrix},
+          {"limited_range", p.limited_range},
+          {"rotation_deg", p.rotation_deg},
+          {"bit_depth", p.bit_depth}};
 }
 
 json glare_json(const GlareMask& g, const Coverage& cov) {
@@ -238,6 +245,8 @@ json assessment_report_json(const Assessment& a, const AssessmentScene& scene, c
         {"reference", a.signal.reference},
         {"reference_log_ratio", num(a.signal.reference_log_ratio)},
         {"noise_sigma", num(a.signal.noise_sigma)},
+        {"noise_sigma_temporal", num(a.signal.temporal_noise_sigma)},
+        {"noise_sigma_spatial", num(a.signal.spatial_noise_sigma)},
         {"blanched_area_mm2", num(blanched)},
         {"plain_difference_mean", plain_n ? num(plain_sum / plain_n) : json(nullptr)},
         {"range", {slo, shi}}}},

@@ -52,6 +52,10 @@ struct PhaseReport {
   bool motion_compensated = false;
   double saturated_fraction = 0, mean_code = 0;
   double gain_min = 1, gain_max = 1, gain_sigma = 0;  ///< per-chunk gains divided out of the window (photometric.hpp)
+  // How the capture was coded and decoded (frame_reader.hpp).
+  std::string codec, pixel_format, colour_matrix;
+  bool lossy = false, limited_range = false;
+  int rotation_deg = 0, bit_depth = 8;
 };
 
 struct Coverage {

@@ -29,6 +29,11 @@ struct BlanchingOptions {
   std::optional<Vec2> reference_uv_mm;   ///< centre of a reference disk on the chart
   double reference_radius_mm = 2.0;      ///< its radius
   std::vector<std::uint8_t> excluded;    ///< per chart texel: 1 = left out, unseen (glare, glare.hpp); empty: none
+  /// Lossy captures: their compression error is fixed in time and correlated in space, so the
+  /// spread of the frames misses it. The noise then also holds a spatial term: the robust spread
+  /// of the smoothed feature over the unpressed skin (where both phases see the same skin, what
+  /// is left is error), beyond what the frames' spread explains.
+  bool spatial_noise = false;
 };
 
 struct BlanchingSignal {
@@ -39,6 +44,8 @@ struct BlanchingSignal {
   double reference_log_ratio = 0;  ///< ln(G_ref / G_ref0)
   std::string reference;           ///< how the reference was chosen, in words
   double noise_sigma = 0;          ///< median of sigma_y over the seen texels
+  double temporal_noise_sigma = 0; ///< noise_sigma from the frames' spread alone
+  double spatial_noise_sigma = 0;  ///< the spatial term added to every texel's sigma_y in quadrature (spatial_noise; else 0)
   long long texels_seen = 0;
   std::vector<std::string> warnings;
 };

@@ -14,14 +14,27 @@ struct CaptureInfo {
   bool is_video = false;
   int frames = 0;      ///< frames read (after read_capture), else as reported by the container / folder
   double fps = 0;      ///< 0 when unknown (image folders)
-  int width = 0, height = 0;
+  int width = 0, height = 0;   ///< as displayed (after the rotation)
+  // Videos: what the stream says and how it was decoded.
+  std::string codec;           ///< e.g. "h264", "hevc", "ffv1"; "png"/"tiff"/... for image folders
+  bool lossy = false;          ///< the codec compresses lossily (H.264, HEVC, MJPEG, JPEG frames...): its noise does not average away
+  std::string pixel_format;    ///< e.g. "yuv420p", "yuv420p10le", "bgr24"
+  std::string colour_matrix;   ///< "bt709", "bt601", "bt2020" or "rgb" (what the YUV was converted with)
+  bool limited_range = false;  ///< the YUV codes span 16–235 (TV range), expanded to full range when decoded
+  int rotation_deg = 0;        ///< clockwise rotation applied to the coded frames so they show upright (0, 90, 180, 270)
+  int bit_depth = 8;           ///< bits per sample of the source; frames above 8 bits are read as 16-bit
 };
 
-/// Reads a capture as 8-bit BGR frames: a video file (any format OpenCV's
-/// FFmpeg back end reads) or a folder of images (PNG, JPEG, TIFF, BMP, sorted
-/// by file name). Throws InputError for a missing source, an unreadable video,
-/// a folder without images, a frame that cannot be read or differs in size
-/// from the first, or a frame that is not 8-bit.
+/// Reads a capture as BGR frames: a video file (any format FFmpeg reads, decoded
+/// on several threads) or a folder of images (PNG, JPEG, TIFF, BMP, sorted by
+/// file name). Videos are converted with the colour matrix (BT.601/709/2020) and
+/// range (limited/full) their stream declares (untagged: BT.709 from 720 lines
+/// up, else BT.601; limited range unless the format is a full-range one), and
+/// turned upright by their rotation metadata. Frames are CV_8UC3, or CV_16UC3
+/// when the source has more than 8 bits (16-bit PNG/TIFF, 10-bit video).
+/// Throws InputError for a missing source, an unreadable video, a folder
+/// without images, a frame that cannot be read or differs in size or depth
+/// from the first, or a frame that is neither 8- nor 16-bit.
 class FrameReader {
  public:
   explicit FrameReader(const std::filesystem::path& source);
@@ -29,7 +42,7 @@ class FrameReader {
   FrameReader(const FrameReader&) = delete;
   FrameReader& operator=(const FrameReader&) = delete;
   const CaptureInfo& info() const;
-  /// The next frame (8-bit BGR; grey frames are expanded); false at the end.
+  /// The next frame (BGR, 8- or 16-bit as info().bit_depth says; grey frames are expanded); false at the end.
   bool read(cv::Mat& bgr);
   /// Name of the frame last read (file name, or "frame N").
   std::string frame_name() const;

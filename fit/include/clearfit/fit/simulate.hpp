@@ -143,6 +143,7 @@ struct Timeline {
   double baseline_s = 4;  ///< not pressed
   double press_s = 3;     ///< pressed: B rises with τ_on from the first press frame
   bool single_video = false;  ///< one video holding both phases (else baseline and worn)
+  int crf = 23;               ///< h264 only: libx264's constant rate factor (0 lossless … 51; phones film at about 18–28)
   int baseline_frames() const;
   int press_frames() const;
   void validate() const;
@@ -203,8 +204,10 @@ class CaptureRenderer {
 /// (frame_00000.png, ...). Measured on simulated 1080p skin (CPU ms per frame
 /// to decode, MB per frame): huffyuv 40, 4.3; ffv1 140, 3.3; png 78, 3.7;
 /// mjpg 10, 0.3 but it shifts a 0.4 % blanching signal by ~30 % after
-/// averaging. huffyuv is the default.
-enum class VideoFormat { ffv1, huffyuv, mjpg, png };
+/// averaging. huffyuv is the default. h264 (.mp4) films as a phone does: libx264
+/// through FFmpeg's libraries at Timeline::crf (preset fast, 1 s key-frame
+/// interval), yuv420p, limited range, tagged BT.709.
+enum class VideoFormat { ffv1, huffyuv, mjpg, png, h264 };
 VideoFormat parse_video_format(const std::string& name);  ///< throws std::invalid_argument
 std::string to_string(VideoFormat format);
 /// The file or folder name of a capture called `stem` ("baseline", "worn", "capture").
@@ -215,7 +218,7 @@ std::string capture_name(const std::string& stem, VideoFormat format);
 /// cannot be opened or a write fails.
 class CaptureWriter {
  public:
-  CaptureWriter(const std::filesystem::path& path, VideoFormat format, double fps, cv::Size size);
+  CaptureWriter(const std::filesystem::path& path, VideoFormat format, double fps, cv::Size size, int crf = 23);
   ~CaptureWriter();
   void write(const cv::Mat& frame);
   void finish();
@@ -226,6 +229,8 @@ class CaptureWriter {
   VideoFormat format_;
   struct Video;  // cv::VideoWriter (videoio is private to the module)
   std::unique_ptr<Video> video_;
+  struct H264;   // libx264 through FFmpeg's libraries
+  std::unique_ptr<H264> h264_;
   int frames_ = 0;
   bool done_ = false;
 };

@@ -11,5 +11,7 @@ double to_linear(double encoded);
 double from_linear(double linear);
 /// Table of to_linear(v / 255) for every 8-bit code v.
 const float* to_linear_table8();
+/// Table of to_linear(v / 65535) for every 16-bit code v (16-bit PNG/TIFF frames, 10-bit video).
+const float* to_linear_table16();
 
 }  // namespace clearfit::srgb
