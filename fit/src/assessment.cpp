@@ -232,6 +232,13 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
     a.pressure_sigma = {g, std::vector<float>(g.size(), kNaN)};
     a.pressure_status.assign(g.size(), static_cast<std::uint8_t>(PressureStatus::invalid));
     calibration->invert(a.signal.y.value, a.signal.sigma_y.value, a.pressure.value, a.pressure_sigma.value, a.pressure_status);
+    // Lossy captures: the calibration's detection limit is its presses' noise, not the compression's;
+    // a texel not significant against this capture's own noise (spatial term included) is below detection.
+    if (bo.spatial_noise)
+      for (std::size_t k = 0; k < g.size(); ++k)
+        if (a.pressure_status[k] == static_cast<std::uint8_t>(PressureStatus::ok) &&
+            !(a.signal.y.value[k] >= o.signal_threshold_sigmas * a.signal.sigma_y.value[k]))
+          a.pressure_status[k] = static_cast<std::uint8_t>(PressureStatus::below_detection);
     // Below detection is a measurement (less than the detection limit), shown and counted as 0 kPa;
     // pressure_status keeps the flag. Unseen texels stay NaN.
     for (std::size_t k = 0; k < g.size(); ++k)
