@@ -316,6 +316,7 @@ struct CaptureWriter::H264 {
     auto fail = [&](const std::string& what) { throw InputError(name, "", "cannot write H.264: " + what, "pick another simulation.format (png always works)"); };
     if (size.width % 2 != 0 || size.height % 2 != 0) fail("yuv420p needs an even width and height, the image is " + std::to_string(size.width) + "x" + std::to_string(size.height));
     if (crf < 0 || crf > 51) fail("the CRF must be 0..51, got " + std::to_string(crf));
+    av_log_set_level(AV_LOG_ERROR);  // libx264 reports its statistics at the info level
     const AVCodec* enc = avcodec_find_encoder_by_name("libx264");
     if (enc == nullptr) fail("FFmpeg has no libx264 encoder");
     if (avformat_alloc_output_context2(&format, nullptr, "mp4", temp.string().c_str()) < 0) fail("no mp4 muxer");
