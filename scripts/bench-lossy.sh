@@ -65,14 +65,14 @@ found = sum(e is not None and e <= 1.0 for e in errs)
 size = 0
 for f in v["phases"][:1]:
     import os
-    size = os.path.getsize(f"{name}/{f['file']}") / 1e6 / f["frames"]
+    size = os.path.getsize(f"{name}/{f['file']}") / 1e3 / f["frames"]
 s = r["signal"]
-print(f"| {v['width']}x{v['height']} | {fmt} | {crf if fmt == 'h264' else '-'} | {size:.3f} | {false} | {found}/{len(large)} | "
+print(f"| {v['width']}x{v['height']} | {fmt} | {crf if fmt == 'h264' else '-'} | {size:.1f} | {false} | {found}/{len(large)} | "
       f"{' / '.join('%.3f' % e if e is not None else 'missed' for e in errs)} | {s['noise_sigma_temporal']:.5f} | "
       f"{s['noise_sigma_spatial']:.5f} | {float(secs):.1f} |")
 PY
 }
-echo "| resolution | format | CRF | MB/frame | false hotspots | hotspots ≥ 3 mm found | centroid errors (mm) | noise σ (frames) | spatial term | assess (s) |"
+echo "| resolution | format | CRF | kB/frame | false hotspots | hotspots ≥ 3 mm found | centroid errors (mm) | noise σ (frames) | spatial term | assess (s) |"
 echo "|---|---|---|---|---|---|---|---|---|---|"
 for s in $scales; do
   row lossless-$s $s huffyuv 23 mkv
