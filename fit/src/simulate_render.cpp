@@ -328,6 +328,7 @@ struct CaptureWriter::H264 {
     codec->framerate = av_d2q(fps, 100000);
     codec->time_base = av_inv_q(codec->framerate);
     codec->gop_size = std::max(1, static_cast<int>(std::lround(fps)));
+    codec->thread_count = 4;  // fixed: libx264's output depends on its thread count, and the truth must not depend on the machine
     codec->color_range = AVCOL_RANGE_MPEG;
     codec->colorspace = AVCOL_SPC_BT709;
     codec->color_primaries = AVCOL_PRI_BT709;
