@@ -125,6 +125,8 @@ Run add_assess(CLI::App& app) {
                    {"max_motion_px", cap.max_motion_px},
                    {"smoothing_mm", sc.assess.smoothing_mm},
                    {"thresholds_kpa", sc.assess.thresholds_kpa},
+                   {"signal_thresholds", sc.assess.signal_thresholds},
+                   {"significance_sigmas", sc.assess.significance_sigmas},
                    {"min_hotspot_area_mm2", sc.assess.min_hotspot_area_mm2},
                    {"glare_mask", sc.assess.glare.options.enabled},
                    {"glare_margin_px", sc.assess.glare.options.margin_px},

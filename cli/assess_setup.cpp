@@ -25,6 +25,9 @@ std::unique_ptr<Prepared> prepare(AssessOpts& o) {
   if (cap.both.empty() && (cap.baseline.empty() || cap.worn.empty()))
     throw InputError(o.scene_file, "captures", "a phase is missing: give 'baseline' (not worn) and 'worn', or 'both'",
                      "see the scene file format in README.md");
+  if (sc.calibration.pressure.empty() && given_on_command_line(o.options, "assess.thresholds_kpa"))
+    throw InputError("", "--thresholds-kpa", "needs a pressure calibration: without one clearfit reports the blanching signal, not kPa",
+                     "give --calibration CAL.json (clearfit calibrate-pressure), or --signal-threshold / --significance-sigmas for the signal");
   if (!o.quiet) std::cerr << "clearfit assess: loading the part and tracing the refraction map\n";
   p->part = load_part_scene(sc, true, std::cerr);
   p->map = compute_part_map(*p->part, o.cache, &p->cache);
@@ -51,6 +54,8 @@ std::unique_ptr<Prepared> prepare(AssessOpts& o) {
   if (!as.reference_uv_mm.empty()) ao.blanching.reference_uv_mm = Vec2(as.reference_uv_mm[0], as.reference_uv_mm[1]);
   ao.blanching.reference_radius_mm = as.reference_radius_mm;
   ao.thresholds_kpa = as.thresholds_kpa;
+  ao.signal_thresholds = as.signal_thresholds;
+  ao.signal_threshold_sigmas = as.significance_sigmas;
   ao.min_hotspot_area_mm2 = as.min_hotspot_area_mm2;
   ao.glare = as.glare.options;
   ao.normalise_gains = as.normalise_exposure;

@@ -236,7 +236,11 @@ void AssessSection::bind(SceneFields& f) {
   f.key("normalise_exposure", normalise_exposure, "--no-exposure-normalisation",
         "Do not divide each 5-frame chunk by its exposure / white-balance / flicker gain");
   f.key("smoothing_mm", smoothing_mm, "--smoothing-mm", "Gaussian smoothing of the signal on the chart, mm");
-  f.numbers("thresholds_kpa", thresholds_kpa, 0, "--thresholds-kpa", "Hotspot thresholds, kPa");
+  f.numbers("thresholds_kpa", thresholds_kpa, 0, "--thresholds-kpa", "Hotspot thresholds, kPa (needs a pressure calibration)");
+  f.numbers("signal_thresholds", signal_thresholds, 0, "--signal-threshold",
+            "Without a calibration: hotspot thresholds on the blanching signal y = ln(G/G0) (default: --significance-sigmas times the noise)");
+  f.key("significance_sigmas", significance_sigmas, "--significance-sigmas",
+        "Without a calibration and --signal-threshold: significant blanching is this many noise sigmas above the reference");
   f.numbers("reference_uv_mm", reference_uv_mm, 2, "--reference-uv-mm",
             "Centre u,v (chart mm) of an unpressed reference disk (default: automatic)");
   f.key("reference_radius_mm", reference_radius_mm, "--reference-radius-mm", "Radius of the reference disk, mm");
@@ -252,6 +256,10 @@ void AssessSection::validate() const {
   if (!(std::isfinite(smoothing_mm) && smoothing_mm >= 0)) rule_broken("smoothing_mm", smoothing_mm, ">= 0 mm");
   for (double t : thresholds_kpa)
     if (!(std::isfinite(t) && t > 0)) rule_broken("thresholds_kpa", t, "positive pressures in kPa");
+  for (double t : signal_thresholds)
+    if (!(std::isfinite(t) && t > 0 && t < 5)) rule_broken("signal_thresholds", t, "positive values of the signal ln(G/G0) below 5");
+  if (!(std::isfinite(significance_sigmas) && significance_sigmas >= 1 && significance_sigmas <= 100))
+    rule_broken("significance_sigmas", significance_sigmas, "a number of noise sigmas in [1, 100]");
   if (!(std::isfinite(reference_radius_mm) && reference_radius_mm > 0))
     rule_broken("reference_radius_mm", reference_radius_mm, "a positive length in mm");
   if (!(std::isfinite(min_hotspot_area_mm2) && min_hotspot_area_mm2 > 0))

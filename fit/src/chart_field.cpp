@@ -43,10 +43,33 @@ float ChartField::sample(const Vec2& uv) const {
   return weight > 1e-12 ? static_cast<float>(sum / weight) : nan;
 }
 
+float ChartField::nearest_defined(const Vec2& uv, double reach_texels) const {
+  float best = std::numeric_limits<float>::quiet_NaN();
+  if (grid.width <= 0 || grid.height <= 0 || !uv.allFinite()) return best;
+  const double fx = (uv.x() - grid.uv_origin.x()) / grid.texel_mm, fy = (uv.y() - grid.uv_origin.y()) / grid.texel_mm;
+  double best_d2 = reach_texels * reach_texels;
+  const int x0 = std::max(0, static_cast<int>(std::floor(fx - reach_texels)));
+  const int x1 = std::min(grid.width - 1, static_cast<int>(std::ceil(fx + reach_texels)));
+  const int y0 = std::max(0, static_cast<int>(std::floor(fy - reach_texels)));
+  const int y1 = std::min(grid.height - 1, static_cast<int>(std::ceil(fy + reach_texels)));
+  for (int y = y0; y <= y1; ++y)
+    for (int x = x0; x <= x1; ++x) {
+      const float v = value[grid.index(x, y)];
+      const double d2 = (x - fx) * (x - fx) + (y - fy) * (y - fy);
+      if (std::isfinite(v) && d2 <= best_d2) best_d2 = d2, best = v;
+    }
+  return best;
+}
+
 std::vector<float> sample_at_vertices(const ChartField& field, const Chart& chart) {
   std::vector<float> out(chart.uv.size(), std::numeric_limits<float>::quiet_NaN());
   for (std::size_t v = 0; v < chart.uv.size(); ++v)
-    if (chart.uv[v].allFinite()) out[v] = field.sample(chart.uv[v]);
+    if (chart.uv[v].allFinite()) {
+      out[v] = field.sample(chart.uv[v]);
+      // On the chart's boundary the texel centres around a vertex may all lie just outside the
+      // charted (or seen) surface: take the nearest defined texel close by.
+      if (!std::isfinite(out[v])) out[v] = field.nearest_defined(chart.uv[v], kVertexReachTexels);
+    }
   return out;
 }
 

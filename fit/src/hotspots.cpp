@@ -113,7 +113,7 @@ struct LevelSums {
 };
 
 struct PlaceSums {
-  double area = 0, unseen = 0, sum_w = 0, sum_vf = 0, peak = -1e300, peak_sigma = 0;
+  double area = 0, half_peak_area = 0, unseen = 0, sum_w = 0, sum_vf = 0, peak = -1e300, peak_sigma = 0;
   Vec3 c = Vec3::Zero(), cp = Vec3::Zero();
   Vec2 uv = Vec2::Zero();
   std::set<int> faces;
@@ -200,6 +200,14 @@ std::vector<Hotspot> find_hotspots(const ChartField& field, const ChartField* si
       if (v > a.peak) a.peak = v, a.peak_sigma = s;
       if (flags && (*flags)[k]) ++a.flagged;
     }
+  // The area at half the place's peak (its full width at half maximum, as an area).
+  for (int j = 0; j < g.height; ++j)
+    for (int i = 0; i < g.width; ++i) {
+      const int l = lab.at<int>(j, i);
+      const auto k = g.index(i, j);
+      if (l > 0 && std::isfinite(field.value[k]) && field.value[k] >= 0.5 * acc[l].peak)
+        acc[l].half_peak_area += raster.face[k] >= 0 ? raster.area_mm2[k] : g.texel_mm * g.texel_mm;
+    }
   std::vector<Hotspot> found;
   for (int l = 1; l < n; ++l) {
     const PlaceSums& a = acc[l];
@@ -222,6 +230,7 @@ std::vector<Hotspot> find_hotspots(const ChartField& field, const ChartField* si
       h.levels.push_back(lv);
     }
     h.area_mm2 = h.levels[0].area_mm2;
+    h.half_peak_area_mm2 = a.half_peak_area;
     h.mean = h.levels[0].mean;
     h.mean_sigma = h.levels[0].mean_sigma;
     h.centroid_uv_mm = a.uv / a.area;

@@ -4,6 +4,7 @@
 #include <clearfit/error.hpp>
 #include <clearfit/npy.hpp>
 #include <clearfit/reports/assessment_report.hpp>
+#include <clearfit/reports/assessment_tables.hpp>
 #include <clearfit/reports/chart_images.hpp>
 #include <clearfit/reports/heatmap_glb.hpp>
 #include <cmath>
@@ -112,10 +113,13 @@ json assessment_report_json(const Assessment& a, const AssessmentScene& scene, c
   const Coverage& cov = a.coverage;
   const double contact = std::max(cov.contact_area_mm2, 1e-12);
   json hotspots = json::array();
+  double pressed_seen = 0, pressed_unseen = 0;
   for (const Hotspot& h : a.hotspots) {
     const double seen_and_unseen = h.area_mm2 + h.unseen_area_mm2;
+    pressed_seen += h.area_mm2, pressed_unseen += h.unseen_area_mm2;
     json j = {{"id", h.id},
               {"area_mm2", num(h.area_mm2)},
+              {"half_peak_area_mm2", num(h.half_peak_area_mm2)},
               {"centroid_mm", vec(h.centroid_mm)},
               {"centroid_mean_mm", vec(h.centroid_mean_mm)},
               {"centre_of_pressure_mm", vec(h.centre_of_pressure_mm)},
@@ -196,7 +200,10 @@ json assessment_report_json(const Assessment& a, const AssessmentScene& scene, c
                   {"skin_chart_png", "skin_chart.png"},
                   {"pressure_npy", "pressure.npy"},
                   {"signal_npy", "signal.npy"},
-                  {"chart_points_npy", "chart_points.npy"}};
+                  {"chart_points_npy", "chart_points.npy"},
+                  {"hotspots_csv", "hotspots.csv"},
+                  {"vertices_csv", "vertices.csv"},
+                  {"heatmap_ply", "heatmap.ply"}};
   if (a.calibrated) outputs["heatmap_signal_glb"] = "heatmap_signal.glb";
   json split = nullptr;
   if (a.split)
@@ -237,7 +244,10 @@ json assessment_report_json(const Assessment& a, const AssessmentScene& scene, c
           {"other", num(cov.blocked_reason == "contact_tir" || cov.blocked_reason == "entry_tir" ? 0.0 : cov.hidden_blocked_mm2 / contact)},
           {"glare", num(cov.glare_masked_mm2 / contact)}}},
         {"glare_masked_mm2", num(cov.glare_masked_mm2)},
-        {"blocked_reason", cov.blocked_reason}}},
+        {"blocked_reason", cov.blocked_reason},
+        {"pressed_seen_mm2", num(pressed_seen)},
+        {"pressed_unseen_mm2", num(pressed_unseen)},
+        {"pressed_unseen_share", num(pressed_seen + pressed_unseen > 0 ? pressed_unseen / (pressed_seen + pressed_unseen) : 0.0)}}},
       {"captures", {{"baseline", phase_json(a.baseline)}, {"worn", phase_json(a.worn)}, {"split", split}}},
       {"glare", glare_json(a.glare, cov)},
       {"signal",
@@ -276,6 +286,7 @@ std::vector<std::string> write_assessment_outputs(const Assessment& a, const Ass
       markers.push_back({h.id, h.centroid_mm,
                          a.calibrated ? "hotspot " + std::to_string(h.id) + ": peak " + fixed1(h.peak) + " kPa"
                                       : "hotspot " + std::to_string(h.id) + ": blanching"});
+  const std::vector<std::uint8_t> seen = vertex_seen(a, *scene.chart);
   auto glb = [&](bool pressure_view, const std::string& name) {
     HeatmapInput in;
     in.mesh = scene.mesh;
@@ -290,6 +301,7 @@ std::vector<std::string> write_assessment_outputs(const Assessment& a, const Ass
     in.range_lo = pressure_view ? lo : slo;
     in.range_hi = pressure_view ? hi : shi;
     in.hotspots = markers;
+    in.seen.assign(seen.begin(), seen.end());
     write_heatmap_glb(in, folder / name);
     written.push_back(name);
   };
@@ -316,6 +328,10 @@ std::vector<std::string> write_assessment_outputs(const Assessment& a, const Ass
   else
     chart_png(a.signal.y, slo, shi, "", "Blanching signal (no pressure calibration)", "chart_pressure.png");
   chart_png(a.signal.y, slo, shi, "", "Blanching signal ln(G/G0), reference-normalised", "chart_signal.png");
+  write_hotspots_csv(a, folder / "hotspots.csv");
+  write_vertex_csv(a, *scene.mesh, *scene.chart, folder / "vertices.csv");
+  write_vertex_ply(a, *scene.mesh, *scene.chart, folder / "heatmap.ply");
+  for (const char* f : {"hotspots.csv", "vertices.csv", "heatmap.ply"}) written.push_back(f);
   write_png(a.skin_camera, folder / "skin_camera.png");
   written.push_back("skin_camera.png");
   cv::Mat chart_up;

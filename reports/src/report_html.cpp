@@ -439,6 +439,11 @@ std::string coverage_table(const json& report) {
   s += row({th("hidden: outside the view"),
             td(percent(at(hidden, "outside_view")) + " <span class=\"why\">outside the image or behind other parts of the part</span>")});
   s += row({th("hidden: other"), td(percent(at(hidden, "other")) + " <span class=\"why\">rays that leave through another face, or missed frames</span>")});
+  if (const json& u = at(c, "pressed_unseen_mm2"); is_number(u) && u.get<double>() > 0)
+    s += row({th("unseen beside the hotspots"),
+              td(num(u, 1) + " mm&sup2; = " + percent(at(c, "pressed_unseen_share")) +
+                 " of the hotspots' seen and unseen area <span class=\"why\">contact surface within 1 mm of a hotspot that the camera "
+                 "does not see (a wall seen edge-on): it may be pressed too, and is counted neither as pressed nor as 0</span>")});
   if (const json& g = at(hidden, "glare"); is_number(g))
     s += row({th("hidden: glare"), td(percent(g) + " (" + num(at(c, "glare_masked_mm2"), 1) +
                                       " mm&sup2;) <span class=\"why\">specular reflections of the part, masked (grey in the pictures)</span>")});
@@ -578,6 +583,8 @@ std::string summary(const json& report, bool calibrated) {
     s += "<li>" + std::to_string(n) + " region" + (n == 1 ? "" : "s") + " of significant blanching.</li>";
   }
   s += "<li>The camera sees " + percent(at(at(report, "coverage"), "seen_fraction")) + " of the contact surface.</li>";
+  if (const json& u = at(at(report, "coverage"), "pressed_unseen_share"); is_number(u) && u.get<double>() > 0)
+    s += "<li>" + percent(u) + " of the hotspots' area is not seen (beside them, e.g. a wall seen edge-on): not counted as pressed nor as 0.</li>";
   const json& w = at(report, "warnings");
   if (w.is_array() && !w.empty()) s += "<li>" + std::to_string(w.size()) + " warning" + (w.size() == 1 ? "" : "s") + " below.</li>";
   return s + "</ul>";

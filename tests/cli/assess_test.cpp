@@ -5,8 +5,15 @@
 // output folder.
 #include "cli_support.hpp"
 
+#include <clearfit/geometry/contact.hpp>
+#include <clearfit/geometry/import.hpp>
+
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <cstring>
+#include <map>
 
 namespace clearfit::cli_test {
 namespace {
@@ -107,6 +114,150 @@ TEST_F(AssessCli, WithoutCalibrationReportsTheSignal) {
   EXPECT_TRUE(report["pressure"].is_null());
   EXPECT_GE(report["hotspots"].size(), 2u);
   for (const auto& h : report["hotspots"]) EXPECT_TRUE(h["peak_kpa"].is_null());
+}
+
+/// Rows of a CSV file (the header first).
+std::vector<std::vector<std::string>> csv_rows(const std::string& text) {
+  std::vector<std::vector<std::string>> rows;
+  std::istringstream in(text);
+  for (std::string line; std::getline(in, line);) {
+    std::vector<std::string> row;
+    std::istringstream ls(line);
+    for (std::string c; std::getline(ls, c, ',');) row.push_back(c);
+    if (!line.empty() && line.back() == ',') row.emplace_back();
+    rows.push_back(row);
+  }
+  return rows;
+}
+
+/// Normalised logistic of SKIN.md (fit/skin_model.hpp): Ψ(0) = 0, Ψ(∞) = 1.
+double psi(double s, double s50 = 8.0, double width = 2.0) {
+  auto L = [&](double x) { return 1 / (1 + std::exp(-(x - s50) / width)); };
+  return (L(s) - L(0)) / (1 - L(0));
+}
+
+TEST_F(AssessCli, WithoutCalibrationTheHalfPeakAreaIsWithinTwentyPercentOfTheTruth) {
+  // The truth's area at half its maximal blanching, in closed form: a Gaussian source (peak P, σ) blurred by
+  // the skin (σ_b = 0.3 mm, SKIN.md's default) is a Gaussian of σ' = √(σ² + σ_b²) and peak P σ²/σ'²; its blanching
+  // β Ψ(p) is half the peak's where p = p½ (Ψ(p½) = Ψ(P')/2), on a disk of radius² 2σ'² ln(P'/p½).
+  scene(two_captures());
+  const RunResult r = assess({"--significance-sigmas", "5"});
+  ASSERT_EQ(r.exit_code, 0) << r;
+  const auto report = nlohmann::json::parse(read_text(work() / "out" / "report.json"));
+  struct Source { Eigen::Vector3d c; double peak, sigma; };
+  for (const Source& s : {Source{{-6, 3, 30}, 14, 1.6}, Source{{6, -3, 30}, 10, 1.2}}) {
+    const double sb = std::sqrt(s.sigma * s.sigma + 0.09), pb = s.peak * s.sigma * s.sigma / (sb * sb);
+    double lo = 0, hi = pb;
+    for (int i = 0; i < 100; ++i) (psi(0.5 * (lo + hi)) < 0.5 * psi(pb) ? lo : hi) = 0.5 * (lo + hi);
+    const double truth = M_PI * 2 * sb * sb * std::log(pb / lo);
+    const nlohmann::json* best = nullptr;
+    double d = 1e9;
+    for (const auto& h : report["hotspots"]) {
+      const Eigen::Vector3d c(h["centroid_mm"][0], h["centroid_mm"][1], h["centroid_mm"][2]);
+      // The sources' centres move onto the band's inner surface (radius 32 mm): compare in x and along the band.
+      const double dist = std::hypot(c.x() - s.c.x(), std::atan2(c.y(), c.z()) * 32 - std::atan2(s.c.y(), s.c.z()) * 32);
+      if (dist < d) d = dist, best = &h;
+    }
+    ASSERT_NE(best, nullptr);
+    const double measured = (*best)["half_peak_area_mm2"].get<double>();
+    std::printf("source peak %.0f kPa, sigma %.1f mm: half-peak area %.2f mm² (truth %.2f), area at the %.1f-sigma threshold %.2f mm²\n",
+                s.peak, s.sigma, measured, truth, 5.0, (*best)["area_mm2"].get<double>());
+    EXPECT_NEAR(measured, truth, 0.2 * truth);
+  }
+}
+
+TEST_F(AssessCli, WithoutCalibrationTheSignalThresholdsAreOptions) {
+  scene(two_captures());
+  RunResult r = assess({"--significance-sigmas", "8"});
+  ASSERT_EQ(r.exit_code, 0) << r;
+  auto report = nlohmann::json::parse(read_text(work() / "out" / "report.json"));
+  ASSERT_EQ(report["thresholds_signal"].size(), 1u);
+  EXPECT_NEAR(report["thresholds_signal"][0].get<double>(), 8 * report["signal"]["noise_sigma"].get<double>(), 1e-9);
+  EXPECT_EQ(report["options"]["significance_sigmas"], 8.0);
+  r = assess({"--signal-threshold", "0.004,0.008"});
+  ASSERT_EQ(r.exit_code, 0) << r;
+  report = nlohmann::json::parse(read_text(work() / "out" / "report.json"));
+  EXPECT_EQ(report["thresholds_signal"], nlohmann::json({0.004, 0.008}));
+  for (const auto& h : report["hotspots"]) {
+    EXPECT_EQ(h["levels"].size(), 2u);
+    EXPECT_GE(h["peak_signal"].get<double>(), 0.004);
+  }
+  fs::remove_all(work() / "out");
+  // kPa thresholds need a calibration; a significance level must be sensible.
+  expect_refused(assess({"--thresholds-kpa", "4,6"}), "--thresholds-kpa");
+  expect_refused(assess({"--significance-sigmas", "0.5"}), "--significance-sigmas");
+}
+
+TEST_F(AssessCli, WritesHotspotAndVertexTablesBesideTheGlb) {
+  scene(two_captures(), calibration());
+  const RunResult r = assess();
+  ASSERT_EQ(r.exit_code, 0) << r;
+  const auto report = nlohmann::json::parse(read_text(work() / "out" / "report.json"));
+  // hotspots.csv: one row per place, the same id, area and centroid as report.json.
+  const auto hot = csv_rows(read_text(work() / "out" / "hotspots.csv"));
+  ASSERT_EQ(hot.size(), report["hotspots"].size() + 1);
+  std::map<std::string, std::size_t> col;
+  for (std::size_t c = 0; c < hot[0].size(); ++c) col[hot[0][c]] = c;
+  for (const char* k : {"id", "peak_kpa", "area_mm2", "half_peak_area_mm2", "area_ge_4.3_kpa_mm2", "area_ge_5.5_kpa_mm2", "centroid_x_mm",
+                        "unseen_share"})
+    ASSERT_TRUE(col.count(k)) << k;
+  for (std::size_t i = 0; i < report["hotspots"].size(); ++i) {
+    const auto& h = report["hotspots"][i];
+    EXPECT_EQ(std::stoi(hot[i + 1][col["id"]]), h["id"].get<int>());
+    EXPECT_NEAR(std::stod(hot[i + 1][col["area_ge_5.5_kpa_mm2"]]), h["levels"][1]["area_mm2"].get<double>(), 1e-4);
+    EXPECT_NEAR(std::stod(hot[i + 1][col["centroid_x_mm"]]), h["centroid_mm"][0].get<double>(), 1e-4);
+  }
+  // vertices.csv and heatmap.ply: every mesh vertex; values only where seen; the same seen flags.
+  const Mesh mesh = load_mesh(kWristband / "wristband.obj");
+  const auto vs = csv_rows(read_text(work() / "out" / "vertices.csv"));
+  ASSERT_EQ(vs.size(), mesh.vertices.size() + 1);
+  EXPECT_EQ(vs[0], (std::vector<std::string>{"vertex", "x_mm", "y_mm", "z_mm", "contact", "seen", "pressure_kpa", "signal"}));
+  const std::string ply = read_text(work() / "out" / "heatmap.ply");
+  const auto end = ply.find("end_header\n");
+  ASSERT_NE(end, std::string::npos);
+  const std::string header = ply.substr(0, end);
+  EXPECT_NE(header.find("element vertex " + std::to_string(mesh.vertices.size())), std::string::npos) << header;
+  EXPECT_NE(header.find("element face " + std::to_string(mesh.faces.size())), std::string::npos) << header;
+  EXPECT_NE(header.find("property float pressure_kpa"), std::string::npos) << header;
+  const char* body = ply.data() + end + 11;
+  ASSERT_EQ(ply.size() - end - 11, mesh.vertices.size() * 21 + mesh.faces.size() * 13);
+  long long seen = 0;
+  for (std::size_t v = 0; v < mesh.vertices.size(); ++v) {
+    float x[5];
+    std::memcpy(x, body + 21 * v, sizeof x);
+    const bool s = body[21 * v + 20] != 0;
+    seen += s;
+    EXPECT_EQ(vs[v + 1][5], s ? "1" : "0") << "vertex " << v;
+    EXPECT_NEAR(x[0], mesh.vertices[v].x(), 1e-3);
+    if (s) EXPECT_NEAR(x[3], std::stod(vs[v + 1][6]), 2e-3) << "vertex " << v;
+    else EXPECT_TRUE(vs[v + 1][6].empty()) << "vertex " << v << ": a value where not seen";
+  }
+  EXPECT_GT(seen, 100);
+  // Contact-boundary vertices the camera sees are seen (_SEEN 1): a boundary vertex whose inner
+  // neighbours on the contact surface are all seen lies on seen skin.
+  ContactSelector sel;
+  sel.group = "contact";
+  const ContactSurface contact = select_contact(mesh, sel);
+  std::vector<int> on_contact(mesh.vertices.size(), 0), off_contact(mesh.vertices.size(), 0);
+  for (int f = 0; f < mesh.num_faces(); ++f)
+    for (int k = 0; k < 3; ++k) (contact.is_contact[f] ? on_contact : off_contact)[mesh.faces[f][k]] = 1;
+  std::vector<std::vector<int>> inner(mesh.vertices.size());
+  for (int f : contact.faces)
+    for (int k = 0; k < 3; ++k)
+      for (int m = 0; m < 3; ++m)
+        if (!off_contact[mesh.faces[f][m]]) inner[mesh.faces[f][k]].push_back(mesh.faces[f][m]);
+  int boundary = 0, boundary_seen = 0;
+  for (std::size_t v = 0; v < mesh.vertices.size(); ++v) {
+    if (!on_contact[v] || !off_contact[v] || inner[v].empty()) continue;
+    bool all = true;
+    for (int w : inner[v]) all = all && vs[w + 1][5] == "1";
+    if (!all) continue;
+    ++boundary;
+    boundary_seen += vs[v + 1][5] == "1";
+  }
+  std::printf("contact-boundary vertices beside seen skin: %d, seen: %d\n", boundary, boundary_seen);
+  EXPECT_GT(boundary, 50);
+  EXPECT_EQ(boundary_seen, boundary);
 }
 
 TEST_F(AssessCli, RefusesBadInputAndLeavesNothing) {

@@ -150,6 +150,23 @@ TEST_F(ReportHtml, NoHotspots) {
   EXPECT_NE(html.find("No hotspot above"), std::string::npos);
 }
 
+TEST_F(ReportHtml, SaysWhatShareOfTheHotspotsIsUnseen) {
+  json report = make_assessment_folder(dir_, FixtureOptions{});
+  std::string html = slurp(reports::write_report_html(dir_).html);
+  EXPECT_EQ(html.find("unseen beside the hotspots"), std::string::npos) << "nothing unseen: no row";
+  // A wall seen edge-on beside the first place: 4.1 of its 4.1 + 12.3 mm² unseen.
+  report["hotspots"][0]["unseen_area_mm2"] = 4.1;
+  report["hotspots"][0]["unseen_share"] = 4.1 / 16.4;
+  report["coverage"]["pressed_seen_mm2"] = 12.3;
+  report["coverage"]["pressed_unseen_mm2"] = 4.1;
+  report["coverage"]["pressed_unseen_share"] = 0.25;
+  std::ofstream(dir_ / "report.json") << report.dump(2);
+  html = slurp(reports::write_report_html(dir_).html);
+  EXPECT_NE(html.find("<th scope=\"row\">unseen beside the hotspots</th><td>4.1 mm&sup2; = 25.0 %"), std::string::npos);
+  EXPECT_NE(html.find("<li>25.0 % of the hotspots' area is not seen"), std::string::npos);
+  EXPECT_FALSE(shows_nan(html));
+}
+
 TEST_F(ReportHtml, SignalOnlyWithoutCalibration) {
   FixtureOptions o;
   o.calibrated = false;

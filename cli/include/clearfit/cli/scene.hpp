@@ -19,7 +19,8 @@
 //              motion_compensation: true}
 //   calibration: {pressure: calibration.json, person: P1}
 //   assess: {smoothing_mm: 0.25, thresholds_kpa: [4.3, 5.5], reference_uv_mm: [u, v],
-//            reference_radius_mm: 2, min_hotspot_area_mm2: 0.05}
+//            reference_radius_mm: 2, min_hotspot_area_mm2: 0.05,
+//            signal_thresholds: [0.01], significance_sigmas: 5}   # the last two without a calibration
 //   simulation: {...}            # clearfit simulate (README.md; read in cli/scene_simulation.cpp)
 //
 // ONE HOME PER PARAMETER. How it works, and how to add to it:
@@ -298,6 +299,8 @@ struct AssessSection {
   bool normalise_exposure = AssessmentOptions{}.normalise_gains;  ///< per-chunk exposure / white-balance / flicker gains
   double smoothing_mm = BlanchingOptions{}.smoothing_mm;
   std::vector<double> thresholds_kpa = AssessmentOptions{}.thresholds_kpa;
+  std::vector<double> signal_thresholds;  ///< without a calibration: thresholds on the signal y; empty: significance_sigmas
+  double significance_sigmas = AssessmentOptions{}.signal_threshold_sigmas;
   std::vector<double> reference_uv_mm;  ///< empty: automatic
   double reference_radius_mm = BlanchingOptions{}.reference_radius_mm;
   double min_hotspot_area_mm2 = AssessmentOptions{}.min_hotspot_area_mm2;

@@ -28,9 +28,16 @@ struct ChartField {
   /// renormalised over the defined ones among the four); NaN when none of the
   /// four is defined or uv is more than half a texel outside the grid.
   float sample(const Vec2& uv) const;
+  /// The value of the defined texel nearest to uv within `reach_texels` texels (NaN if none).
+  float nearest_defined(const Vec2& uv, double reach_texels) const;
 };
 
-/// The field at every mesh vertex that has a chart coordinate (NaN elsewhere).
+/// How far from a vertex sample_at_vertices looks for a defined texel when
+/// none of the four around it is defined (a vertex on the chart's boundary).
+inline constexpr double kVertexReachTexels = 1.5;
+
+/// The field at every mesh vertex that has a chart coordinate: the bilinear
+/// sample, else the nearest defined texel within kVertexReachTexels (NaN elsewhere).
 std::vector<float> sample_at_vertices(const ChartField& field, const Chart& chart);
 
 }  // namespace clearfit

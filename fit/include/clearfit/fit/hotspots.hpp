@@ -44,6 +44,10 @@ struct Hotspot {
   double peak = 0, mean = 0;          ///< field values (mean over the place)
   double peak_sigma = 0, mean_sigma = 0;  ///< 1-σ uncertainties (NaN if no sigma field)
   double area_mm2 = 0;                ///< skin area of the place (its lowest level)
+  /// Seen skin area of the place at or above half its peak (the full width at
+  /// half maximum, as an area): the size of a place that does not depend on
+  /// the threshold, e.g. of significant blanching without a calibration.
+  double half_peak_area_mm2 = 0;
   Vec3 centroid_mm = Vec3::Zero();    ///< on the contact surface: the point of it nearest to centroid_mean_mm
   Vec3 centroid_mean_mm = Vec3::Zero();  ///< area-weighted 3D mean (inside a curved surface)
   Vec3 centre_of_pressure_mm = Vec3::Zero();  ///< field-weighted 3D mean, moved onto the surface likewise
