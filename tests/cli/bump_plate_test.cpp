@@ -52,15 +52,15 @@ std::string plate_scene(const Plate& p, const fs::path& mesh, const fs::path& ca
 }
 
 /// One plate simulated, calibrated and assessed once (shared by the tests of a plate).
-struct Run {
+struct PlateRun {
   fs::path dir;
   nlohmann::json report, truth;
   npy::Float32Array truth_p, measured, points;
   std::string vertices_csv;
 };
 
-Run simulate_and_assess(const Plate& p, const fs::path& mesh, const fs::path& camera, double scale) {
-  Run r;
+PlateRun simulate_and_assess(const Plate& p, const fs::path& mesh, const fs::path& camera, double scale) {
+  PlateRun r;
   r.dir = fs::temp_directory_path() / ("clearfit_bump_plate_" + p.name + "_" + std::to_string(::getpid()));
   fs::remove_all(r.dir);
   fs::create_directories(r.dir / "capture");
@@ -71,10 +71,11 @@ Run simulate_and_assess(const Plate& p, const fs::path& mesh, const fs::path& ca
     return x;
   };
   step({"simulate", "scene.yaml", "--quiet", "--no-cache"});
-  step({"calibrate-pressure", "--presses", "captures/presses.csv", "--person", "participant-1", "--camera", "captures/camera.cameramodel",
-        "--out", "captures/calibration.json"});
   // The captures are rendered at the scale: assess them with the scaled camera clearfit simulate wrote beside them.
-  step({"assess", "scene.yaml", "--camera", "captures/camera.cameramodel", "--quiet", "--no-cache", "--no-html"});
+  const std::string cam = scale != 1.0 ? "captures/camera.cameramodel" : camera.string();
+  step({"calibrate-pressure", "--presses", "captures/presses.csv", "--person", "participant-1", "--camera", cam, "--out",
+        "captures/calibration.json"});
+  step({"assess", "scene.yaml", "--camera", cam, "--quiet", "--no-cache", "--no-html"});
   r.report = nlohmann::json::parse(read_text(r.dir / "out" / "report.json"));
   r.truth = nlohmann::json::parse(read_text(r.dir / "captures" / "truth.json"));
   r.truth_p = npy::read_float32(r.dir / "captures" / "truth_pressure.npy");
@@ -91,15 +92,26 @@ struct Scores {
 
 /// Truth against measurement texel by texel on the shared chart grid; texels
 /// the camera does not see (NaN in pressure.npy) are not scored.
-Scores score(const Run& r, const Plate& p) {
+Scores score(const PlateRun& r, const Plate& p) {
   Scores s;
-  EXPECT_EQ(r.truth_p.shape, r.measured.shape) << "truth and assessment on different chart grids";
-  const std::size_t n = std::min(r.truth_p.values.size(), r.measured.values.size());
+  // The truth's texel under each assessment texel (both grids have their texel centres on multiples of texel_mm).
+  const auto& tg = r.truth["chart_grid"];
+  const auto& ag = r.report["chart"];
+  const double texel = ag["texel_mm"].get<double>();
+  EXPECT_NEAR(tg["texel_mm"].get<double>(), texel, 1e-12);
+  const int aw = ag["width"], tw = tg["width"], th = tg["height"];
+  const long long di = std::llround((ag["uv_min_mm"][0].get<double>() - tg["uv_origin_mm"][0].get<double>()) / texel);
+  const long long dj = std::llround((ag["uv_min_mm"][1].get<double>() - tg["uv_origin_mm"][1].get<double>()) / texel);
+  auto truth_at = [&](std::size_t k) {
+    const long long i = static_cast<long long>(k % aw) + di, j = static_cast<long long>(k / aw) + dj;
+    return i < 0 || j < 0 || i >= tw || j >= th ? NAN : r.truth_p.values[j * tw + i];
+  };
+  const std::size_t n = r.measured.values.size();
   double se = 0, top = 0;
   long long pos = 0, hit = 0, neg = 0, alarm = 0;
   auto point = [&](std::size_t k) { return Eigen::Vector3d(r.points.values[3 * k], r.points.values[3 * k + 1], r.points.values[3 * k + 2]); };
   for (std::size_t k = 0; k < n; ++k) {
-    const float t = r.truth_p.values[k], m = r.measured.values[k];
+    const float t = truth_at(k), m = r.measured.values[k];
     const Eigen::Vector3d x = point(k);
     if (x.allFinite() && x.z() > -0.9 * p.height && x.z() < -0.1 * p.height) {  // the wall
       ++s.wall_texels;
@@ -129,7 +141,7 @@ Scores score(const Run& r, const Plate& p) {
   return s;
 }
 
-void expect_targets(const Run& r, const Plate& p) {
+void expect_targets(const PlateRun& r, const Plate& p) {
   const Scores s = score(r, p);
   const double range = r.report["pressure"]["range_kpa"][1].get<double>();
   ASSERT_FALSE(r.report["hotspots"].empty());
@@ -159,7 +171,7 @@ void expect_targets(const Run& r, const Plate& p) {
 }
 
 /// vertices.csv: a vertex on the bump face's edge is seen (its face side is); one inside the wall is not.
-void expect_vertices_seen(const Run& r, const Plate& p) {
+void expect_vertices_seen(const PlateRun& r, const Plate& p) {
   std::istringstream in(r.vertices_csv);
   std::string line;
   std::getline(in, line);
@@ -183,12 +195,12 @@ void expect_vertices_seen(const Run& r, const Plate& p) {
 
 class BumpPlate : public ::testing::Test {
  protected:
-  static const Run& study() {
-    static const Run r = simulate_and_assess(study_plate(), kSample / "study-plate.obj", kSample / "camera.cameramodel", 0.5);
+  static const PlateRun& study() {
+    static const PlateRun r = simulate_and_assess(study_plate(), kSample / "study-plate.obj", kSample / "camera.cameramodel", 0.5);
     return r;
   }
-  static const Run& small() {
-    static const Run r = [] {
+  static const PlateRun& small() {
+    static const PlateRun r = [] {
       const fs::path d = fs::temp_directory_path() / ("clearfit_small_bump_" + std::to_string(::getpid()));
       fs::create_directories(d);
       test::BumpPlate b;
