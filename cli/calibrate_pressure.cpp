@@ -5,6 +5,7 @@
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/camera/camera_model.hpp>
 #include <clearfit/error.hpp>
+#include <clearfit/fit/pressure_field_fit.hpp>
 #include <clearfit/fit/pressure_model.hpp>
 
 #include <opencv2/imgcodecs.hpp>
@@ -190,7 +191,8 @@ void print_summary(const PressureFitResult& r, RobustLoss loss) {
 
 Run add_calibrate_pressure(CLI::App& app) {
   struct Opts {
-    std::string presses, person, camera, out, model = "logistic", loss = "tukey", report, plot;
+    std::string presses, person, camera, out, model = "logistic", loss = "tukey", report, plot, field;
+    FieldFitOptions field_fit;
   };
   auto o = std::make_shared<Opts>();
   CLI::App* sub = app.add_subcommand(
@@ -205,6 +207,11 @@ Run add_calibrate_pressure(CLI::App& app) {
   sub->add_option("--model", o->model, "Model stored in the calibration (both are always fitted and reported)")
       ->check(CLI::IsMember({"logistic", "linear"}))->capture_default_str();
   sub->add_option("--loss", o->loss, "Robust loss of the logistic fit")->check(CLI::IsMember({"tukey", "huber", "none"}))->capture_default_str();
+  sub->add_option("--pressure-field", o->field,
+                  "Pressure under the indenter: punch (Sneddon's flat punch, blurred; fitted to the presses' radial profiles) or "
+                  "uniform (F/(pi a^2) against the disc's mean signal, as the study); default punch when the presses carry profiles")
+      ->check(CLI::IsMember({"punch", "uniform"}));
+  sub->add_option("--blur-mm", o->field_fit.blur_sigma_mm, "The skin's lateral blur of the pressure (punch field), mm")->capture_default_str();
   sub->add_option("--report", o->report, "Output report (JSON): parameters, SE, R^2, RMSE, residuals per trial, warnings");
   sub->add_option("--plot", o->plot, "Output PNG of the fit: presses, logistic curve, linear line");
 
@@ -236,14 +243,41 @@ Run add_calibrate_pressure(CLI::App& app) {
     fo.loss = o->loss == "none" ? RobustLoss::none : o->loss == "huber" ? RobustLoss::huber : RobustLoss::tukey;
     fo.source = o->presses;
     if (!o->camera.empty()) fo.camera_hash = format_intrinsics_hash(read_cameramodel(o->camera).intrinsics_hash());
-    const PressureFitResult r = fit_pressure_calibration(presses, fo);
+    const bool profiles = presses_have_profiles(presses);
+    const std::string field = !o->field.empty() ? o->field : profiles ? "punch" : "uniform";
+    if (field == "punch" && fo.model == PressureModelKind::linear)
+      throw InputError("", "--model linear", "is fitted to the disc's mean signal only", "use --pressure-field uniform with it");
+    const PressureFitResult r = field == "punch" ? fit_pressure_field(presses, fo, o->field_fit) : fit_pressure_calibration(presses, fo);
+    // The points drawn: the presses (uniform), or every ring at its mean blurred pressure (punch).
+    std::vector<CalibrationPress> points = presses;
+    PressureFitResult drawn = r;
+    if (field == "punch") {
+      points.clear(), drawn.residuals.clear();
+      for (const CalibrationPress& c : presses) {
+        const IndenterProfile profile(PressureField::punch, c.indenter_diameter_mm / 2, o->field_fit.blur_sigma_mm);
+        for (std::size_t k = 0; k < c.ring_signal.size(); ++k) {
+          CalibrationPress ring = c;
+          const double r0 = c.ring_edges_mm[k], r1 = c.ring_edges_mm[k + 1];
+          ring.mean_pressure_kpa = c.force_n * profile.kpa_per_newton(std::sqrt(0.5 * (r0 * r0 + r1 * r1)));
+          ring.signal = c.ring_signal[k];
+          points.push_back(ring);
+          drawn.residuals.push_back({});
+        }
+      }
+    }
 
     // Everything is computed before the first file is written.
-    const std::string report = o->report.empty() ? "" : report_json(r, o->presses, o->camera, o->out).dump(2) + "\n";
+    std::string report;
+    if (!o->report.empty()) {
+      nlohmann::json j = report_json(r, o->presses, o->camera, o->out);
+      j["pressure_field"] = {{"kind", field}, {"blur_sigma_mm", field == "punch" ? jnum(o->field_fit.blur_sigma_mm) : jnum(NAN)}};
+      report = j.dump(2) + "\n";
+    }
     std::vector<unsigned char> png;
-    if (!o->plot.empty() && !cv::imencode(".png", plot_fit(r, presses), png))
+    if (!o->plot.empty() && !cv::imencode(".png", plot_fit(drawn, points), png))
       throw std::runtime_error("PNG encoding of the fit plot failed");
     print_summary(r, fo.loss);
+    std::printf("pressure field: %s%s\n", field.c_str(), field == "punch" ? " (Sneddon's flat punch, blurred; the presses' radial profiles)" : " (F / pi a^2)");
     std::fflush(stdout);
     for (const auto& w : r.warnings) std::cerr << "clearfit: warning: " << w << "\n";
     write_pressure_calibration(r.calibration, o->out);

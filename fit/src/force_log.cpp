@@ -173,7 +173,7 @@ std::vector<ForcePress> find_presses(const ForceLog& log, const PressSegmentatio
       p.rest_start_s = std::max(previous_end + 0.5 * (p.start_s - previous_end), p.start_s - 5.0);
       presses.push_back(p);
     }
-    previous_end = p.end_s;
+    if (t[e] - t[i] >= 0.25) previous_end = p.end_s;  // a noise spike above the threshold does not end a rest
     i = e + 1;
   }
   if (presses.empty())

@@ -46,6 +46,37 @@ std::string num(double v) {
   s << v;
   return s.str();
 }
+/// The ';'-separated ring profile columns of one row (both or neither; edges increasing, one signal per ring).
+void read_profile(const std::vector<std::string>& fields, const std::map<std::string, int>& col, const std::string& file,
+                  const std::string& where, CalibrationPress& c) {
+  const auto e = col.find("ring_edges_mm"), y = col.find("ring_signal");
+  if (e == col.end() && y == col.end()) return;
+  if (e == col.end() || y == col.end())
+    throw InputError(file, where, "gives one of ring_edges_mm and ring_signal without the other", "give both or neither");
+  auto list = [&](const std::string& field, const char* name) {
+    std::vector<double> out;
+    std::size_t start = 0;
+    while (start <= field.size()) {
+      const std::size_t end = std::min(field.find(';', start), field.size());
+      double v = 0;
+      const auto [ptr, ec] = std::from_chars(field.data() + start, field.data() + end, v);
+      if (ec != std::errc() || ptr != field.data() + end || !std::isfinite(v))
+        throw InputError(file, where + ", column '" + name + "'", "expected ';'-separated numbers, found '" + field + "'");
+      out.push_back(v);
+      start = end + 1;
+    }
+    return out;
+  };
+  if (fields[e->second].empty() && fields[y->second].empty()) return;
+  c.ring_edges_mm = list(fields[e->second], "ring_edges_mm");
+  c.ring_signal = list(fields[y->second], "ring_signal");
+  bool increasing = c.ring_edges_mm.size() >= 2 && c.ring_edges_mm[0] >= 0;
+  for (std::size_t k = 1; k < c.ring_edges_mm.size(); ++k) increasing = increasing && c.ring_edges_mm[k] > c.ring_edges_mm[k - 1];
+  if (!increasing || c.ring_signal.size() + 1 != c.ring_edges_mm.size())
+    throw InputError(file, where, "ring_edges_mm must be n + 1 increasing radii >= 0 and ring_signal n values (found " +
+                     std::to_string(c.ring_edges_mm.size()) + " and " + std::to_string(c.ring_signal.size()) + ")");
+}
+
 }  // namespace
 
 std::vector<CalibrationPress> read_presses_csv(const std::filesystem::path& path, std::vector<std::string>* notes) {
@@ -71,7 +102,8 @@ std::vector<CalibrationPress> read_presses_csv(const std::filesystem::path& path
         if (header[k].empty()) throw InputError(file, where + " (header)", "column " + std::to_string(k + 1) + " has no name", kHint);
         if (!col.emplace(header[k], static_cast<int>(k)).second)
           throw InputError(file, where + " (header)", "column '" + header[k] + "' appears twice", kHint);
-        static const std::array<const char*, 5> known{"trial", "indenter_diameter_mm", "force_n", "mean_pressure_kpa", "signal"};
+        static const std::array<const char*, 10> known{"trial", "indenter_diameter_mm", "force_n", "mean_pressure_kpa", "signal",
+                                                       "force_sd_n", "hold_frames", "rest_frames", "ring_edges_mm", "ring_signal"};
         if (std::find(known.begin(), known.end(), header[k]) == known.end() && notes)
           notes->push_back(file + ": column '" + header[k] + "' is not used");
       }
@@ -127,6 +159,7 @@ std::vector<CalibrationPress> read_presses_csv(const std::filesystem::path& path
     if (!pressure && !computed)
       throw InputError(file, where, "gives no pressure: mean_pressure_kpa is empty and force_n / indenter_diameter_mm are incomplete", kHint);
     c.mean_pressure_kpa = pressure ? *pressure : *computed;
+    read_profile(fields, col, file, where, c);
     presses.push_back(std::move(c));
   }
   if (in.bad()) throw InputError(file, "", "read error");

@@ -37,10 +37,10 @@ struct CalibrationSessionSpec {
   // presses (gauge clock)
   int presses = 14;
   double hold_s = 5, rest_min_s = 6, rest_max_s = 10, lead_s = 6;
-  double min_kpa = 2, max_kpa = 40;  ///< mean pressure of the presses (F/πa²), spread in random order
+  double min_kpa = 4, max_kpa = 40;  ///< mean pressure of the presses (F/πa²), spread in random order
   double ramp_s = 0.3, overshoot = 0.08, overshoot_tau_s = 0.4;
   // gauge
-  double gauge_hz = 50, offset_s = 3.7, drift_ppm = 300, force_noise_n = 0.003, tare_n = 0.05, rest_drift_n = 0.01;
+  double gauge_hz = 50, offset_s = 3.7, drift_ppm = 300, force_noise_n = 0.003, tare_n = 0.05, rest_drift_n = 0.005;
   SkinParameters skin;
   VideoFormat format = VideoFormat::huffyuv;
   std::uint64_t seed = 1;

@@ -34,6 +34,10 @@ struct CalibrationPress {
   double mean_pressure_kpa = 0;      ///< given, or force / (π r²)
   double signal = 0;                 ///< y, dimensionless
   int line = 0;                      ///< line in the CSV file (0: built in memory)
+  /// The radially resolved signal (`clearfit presses`): ring k spans
+  /// [ring_edges_mm[k], ring_edges_mm[k+1]) from the indenter's axis on the skin;
+  /// ring_signal[k] is y averaged there. Empty when the file has no profile.
+  std::vector<double> ring_edges_mm, ring_signal;
 };
 
 /// Reads calibration presses from a CSV file with a header row naming the
@@ -47,6 +51,9 @@ struct CalibrationPress {
 /// the file, the line and column, what was expected (missing column, text in a
 /// number, non-finite value, negative force or pressure, non-positive
 /// diameter, wrong field count, inconsistent pressure, no data rows).
+/// Optional columns `ring_edges_mm` (n + 1 increasing radii) and `ring_signal`
+/// (n values), each ';'-separated, give the radial profile; other columns
+/// written by `clearfit presses` (force_sd_n, hold_frames, rest_frames) are known.
 std::vector<CalibrationPress> read_presses_csv(const std::filesystem::path& path,
                                                std::vector<std::string>* notes = nullptr);
 
