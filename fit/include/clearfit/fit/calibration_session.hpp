@@ -36,7 +36,7 @@ struct CalibrationSessionSpec {
   double noise_levels = 1.0;         ///< sensor noise, 8-bit levels (linear, before sRGB)
   // presses (gauge clock)
   int presses = 14;
-  double hold_s = 5, rest_min_s = 6, rest_max_s = 10, lead_s = 6;
+  double hold_s = 5, rest_min_s = 12, rest_max_s = 18, lead_s = 8;  // rests: the skin refills (τ_off) before its baseline
   double min_kpa = 4, max_kpa = 40;  ///< mean pressure of the presses (F/πa²), spread in random order
   double ramp_s = 0.3, overshoot = 0.08, overshoot_tau_s = 0.4;
   // gauge
