@@ -131,6 +131,9 @@ Run add_assess(CLI::App& app) {
                    {"glare_mask", sc.assess.glare.options.enabled},
                    {"glare_margin_px", sc.assess.glare.options.margin_px},
                    {"exposure_normalisation", sc.assess.normalise_exposure},
+                   {"timeseries", sc.assess.timeseries.options.enabled},
+                   {"timeseries_cell_px", sc.assess.timeseries.options.cell_px},
+                   {"timeseries_max_mb", sc.assess.timeseries.options.max_mb},
                    {"person", sc.calibration.person}};
     for (const auto& n : notes) std::cerr << "clearfit: note: " << n << "\n";
     ctx.run_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -231,8 +231,26 @@ void GlareSection::validate() const {
   }
 }
 
+void TimeSeriesSection::bind(SceneFields& f) {
+  f.key("enabled", options.enabled, "--no-timeseries", "Do not follow the worn phase over time (no timeline)");
+  f.key("cell_px", options.cell_px, "--timeseries-cell-px", "Cell edge of the time series in the camera image, px");
+  f.key("max_mb", options.max_mb, "--timeseries-max-mb", "Memory for the time series, MB (the time step doubles beyond it)");
+  f.key("texel_mm", options.texel_mm);
+  f.key("onset_window_s", options.onset_window_s);
+  f.key("min_refill_taus", options.min_refill_taus);
+}
+
+void TimeSeriesSection::validate() const {
+  try {
+    options.validate();
+  } catch (const InputError& e) {
+    throw SceneRuleError("", e.what());
+  }
+}
+
 void AssessSection::bind(SceneFields& f) {
   f.section("glare", glare);
+  f.section("timeseries", timeseries);
   f.key("normalise_exposure", normalise_exposure, "--no-exposure-normalisation",
         "Do not divide each 5-frame chunk by its exposure / white-balance / flicker gain");
   f.key("smoothing_mm", smoothing_mm, "--smoothing-mm", "Gaussian smoothing of the signal on the chart, mm");
@@ -252,6 +270,11 @@ void AssessSection::validate() const {
     glare.validate();
   } catch (const SceneRuleError& e) {
     throw SceneRuleError("glare", e.what());
+  }
+  try {
+    timeseries.validate();
+  } catch (const SceneRuleError& e) {
+    throw SceneRuleError("timeseries", e.what());
   }
   if (!(std::isfinite(smoothing_mm) && smoothing_mm >= 0)) rule_broken("smoothing_mm", smoothing_mm, ">= 0 mm");
   for (double t : thresholds_kpa)

@@ -39,10 +39,11 @@ class SimulationParser {
     }
     num(s, "scale", "simulation.scale", o.scale, 0.05, 4);
     if (const YAML::Node t = s["timeline"]) {
-      r_.only_keys(t, "simulation.timeline", {"fps", "baseline_s", "press_s", "single_video"});
+      r_.only_keys(t, "simulation.timeline", {"fps", "baseline_s", "press_s", "release_s", "single_video"});
       num(t, "fps", "simulation.timeline.fps", o.timeline.fps, 1, 1000);
-      num(t, "baseline_s", "simulation.timeline.baseline_s", o.timeline.baseline_s, 1e-3, 600);
-      num(t, "press_s", "simulation.timeline.press_s", o.timeline.press_s, 1e-3, 600);
+      num(t, "baseline_s", "simulation.timeline.baseline_s", o.timeline.baseline_s, 1e-3, 3600);
+      num(t, "press_s", "simulation.timeline.press_s", o.timeline.press_s, 1e-3, 3600);
+      num(t, "release_s", "simulation.timeline.release_s", o.timeline.release_s, 0, 3600);
       if (auto v = r_.get<bool>(t, "single_video", "simulation.timeline.single_video", "true or false")) o.timeline.single_video = *v;
     }
     if (const YAML::Node k = s["skin"]) parse_skin(k, o.skin);

@@ -158,11 +158,13 @@ Run add_simulate(CLI::App& app) {
       for (const char* f : {"truth.json", "truth_pressure.npy", "truth_vertex_pressure.npy"}) written.emplace_back(f);
       if (photometry)
         for (const auto& f : photometry->write_truth(out)) written.push_back(f);
-      const int frames = cap.baseline_frames + cap.press_frames;
+      const int frames = cap.baseline_frames + cap.press_frames + cap.release_frames;
       std::ostringstream s;
       s.precision(3);
       s << frames << " frames " << map.width << "x" << map.height << " (" << cap.baseline_frames << " baseline + "
-        << cap.press_frames << " pressed at " << spec.timeline.fps << " fps): render " << cap.render_ms / frames
+        << cap.press_frames << " pressed"
+        << (cap.release_frames > 0 ? " + " + std::to_string(cap.release_frames) + " after removal" : std::string()) << " at "
+        << spec.timeline.fps << " fps): render " << cap.render_ms / frames
         << " ms/frame, waiting for the encoder " << cap.write_ms / frames << " ms/frame";
       say(s.str());
       for (std::size_t k = 0; k < truth.hotspots.size(); ++k) {

@@ -160,8 +160,15 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
   ro.expected_width = scene.camera->width;
   ro.expected_height = scene.camera->height;
   MotionReference reference;
-  auto read = [&](const std::filesystem::path& path, const std::string& role) {
+  if (o.timeseries.enabled) o.timeseries.validate();
+  std::optional<TimeSeriesRecorder> base_series, worn_series;  // the worn phase over time (timeseries.hpp)
+  auto read = [&](const std::filesystem::path& path, const std::string& role, std::optional<TimeSeriesRecorder>* series) {
     ro.role = role;
+    ro.on_frame = nullptr;
+    if (o.timeseries.enabled && series && ro.roi.area() > 0) {
+      series->emplace(ro.roi & cv::Rect(0, 0, map.width, map.height), o.timeseries);
+      ro.on_frame = [series](const cv::Mat& frame, cv::Point shift) { (*series)->add(frame, shift); };
+    }
     ro.progress = [&](int done, int total) {
       if (o.progress) o.progress("reading the " + role + " capture", done, total);
     };
@@ -176,7 +183,7 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
   Vec2 worn_frame_shift = Vec2::Zero();  // its content's displacement against the reference frame
   const bool split_mode = !captures.both.empty();
   if (split_mode) {
-    const CaptureSums sums = read(captures.both, "capture");
+    const CaptureSums sums = read(captures.both, "capture", &worn_series);
     const PhaseSplit split = split_phases(sums, o.window_frames);
     base_avg = average_window(sums, split.baseline, o.window_frames, o.normalise_gains);
     worn_avg = average_window(sums, split.worn, o.window_frames, o.normalise_gains);
@@ -189,10 +196,12 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
     if (captures.baseline.empty() || captures.worn.empty())
       throw InputError("", "captures", "a phase is missing: give both 'baseline' (not worn) and 'worn', or 'both' for one video holding both",
                        "see the scene file format in README.md");
-    const CaptureSums base = read(captures.baseline, "baseline");
+    // Each capture's window is its last frames: only those chunk sums are kept (bounded memory).
+    ro.keep_last_frames = o.window_frames + 2 * o.chunk_frames;
+    const CaptureSums base = read(captures.baseline, "baseline", &base_series);
     base_avg = average_window(base, last_frames(base, o.window_frames), o.window_frames, o.normalise_gains);
     a.baseline = phase_report(base, base_avg, o.compensate_motion);
-    const CaptureSums worn = read(captures.worn, "worn");
+    const CaptureSums worn = read(captures.worn, "worn", &worn_series);
     worn_avg = average_window(worn, last_frames(worn, o.window_frames), o.window_frames, o.normalise_gains);
     a.worn = phase_report(worn, worn_avg, o.compensate_motion);
     worn_frame = worn.last_frame;
@@ -287,6 +296,26 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
     if (h.touches_mask)
       a.warnings.push_back("hotspot " + std::to_string(h.id) + " touches the glare mask: it may extend under it, and its peak, area and "
                            "centroid may be larger or elsewhere than shown");
+
+  if (worn_series) {
+    if (o.progress) o.progress("time series", 0, 0);
+    TimeInputs ti;
+    ti.series = &*worn_series;
+    ti.baseline = base_series ? &*base_series : nullptr;
+    ti.baseline_window = base_avg.window;
+    ti.fps = a.worn.fps;
+    if (a.split) ti.press_frame = a.split->press_frame, ti.release_frame = a.split->release_frame;
+    ti.residual_shift_px = worn_avg.residual_shift_px;
+    ti.inverse = &inv;
+    ti.field = a.calibrated ? &a.pressure : &a.signal.y;
+    ti.labels = &a.hotspot_labels;
+    ti.hotspots = &a.hotspots;
+    ti.thresholds = a.thresholds;
+    std::sort(ti.thresholds.begin(), ti.thresholds.end());
+    ti.calibration = calibration ? &*calibration : nullptr;
+    a.time = analyse_time(ti, o.timeseries);
+    for (const auto& w : a.time.warnings) a.warnings.push_back(w);
+  }
 
   // Coverage of the contact surface.
   Coverage& c = a.coverage;

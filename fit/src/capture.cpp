@@ -199,6 +199,12 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
       sums.chunk_sum.emplace_back(cv::Mat::zeros(roi.size(), CV_32F));
       if (options.colour) sums.chunk_blue.emplace_back(cv::Mat::zeros(half_grid(roi.size()), CV_32F));
       sums.chunk_count.push_back(0);
+      // Bounded memory: release the sums of chunks wholly before the frames to keep.
+      for (const int drop = options.keep_last_frames > 0 ? (n - options.keep_last_frames) / options.chunk_frames : 0;
+           sums.released_chunks < drop; ++sums.released_chunks) {
+        sums.chunk_sum[sums.released_chunks].release();
+        if (options.colour) sums.chunk_blue[sums.released_chunks].release();
+      }
     }
     cv::Mat& acc = sums.chunk_sum[chunk];
     // Adds (sign +1) or removes (-1) the frame's linear green at integer shift d; with
@@ -277,6 +283,7 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
     }
     if (options.colour) accumulate_half_blue(frame, roi, d, sums.chunk_blue[chunk]);
     ++sums.chunk_count[chunk];
+    if (options.on_frame) options.on_frame(frame, d);
     std::array<float, 64> blocks{};
     std::array<int, 64> block_pixels{};
     long long stat_saturated = 0, stat_code = 0;
@@ -332,6 +339,11 @@ PhaseAverage average_window(const CaptureSums& sums, FrameWindow window, int min
                      "the averaging window holds " + std::to_string(avg.window.count) + " usable frames, fewer than the " +
                          std::to_string(min_frames) + " asked for (the capture has " + std::to_string(n) + " frames)",
                      "film longer, or lower captures.window_frames");
+  if (first_chunk < sums.released_chunks)
+    throw InputError(sums.info.source.string(), "frames " + std::to_string(window.first) + ".." + std::to_string(window.first + window.count - 1),
+                     "the averaging window reaches frames whose sums were not kept (the read kept the last " +
+                         std::to_string((static_cast<int>(sums.chunk_sum.size()) - sums.released_chunks) * c) + " frames only)",
+                     "average the last frames of this capture");
   // Mean of the chunks, each divided by its gain (exposure, white balance, flicker: photometric.hpp).
   const int chunks = end_chunk - first_chunk;
   auto gain_normalised_mean = [&](const std::vector<cv::Mat>& chunk_sums, std::vector<double>& gains) {
@@ -417,15 +429,39 @@ PhaseSplit split_phases(const CaptureSums& sums, int window_frames) {
     const auto s = prefix[b] - prefix[a];
     return (prefix_sq[b] - prefix_sq[a]) - s.squaredNorm() / (b - a);
   };
-  int best = -1;
-  double best_cost = std::numeric_limits<double>::infinity();
-  for (int t = 2; t <= n - 2; ++t) {
-    const double cost = sse(0, t) + sse(t, n);
-    if (cost < best_cost) best_cost = cost, best = t;
+  // Best split of frames [a, b) into two segments (at least 2 frames each): the split and its cost.
+  auto best_split = [&](int a, int b) {
+    std::pair<int, double> best{-1, std::numeric_limits<double>::infinity()};
+    for (int t = a + 2; t <= b - 2; ++t) {
+      const double cost = sse(a, t) + sse(t, b);
+      if (cost < best.second) best = {t, cost};
+    }
+    return best;
+  };
+  auto mean_of = [&](int a, int b) -> Eigen::Matrix<double, 64, 1> { return (prefix[b] - prefix[a]) / (b - a); };
+  const int best = best_split(0, n).first;
+  // The part may be removed before the capture ends: a second step, back toward the baseline.
+  // Binary segmentation: the best further split on either side of the first; it is the removal
+  // when the middle segment stands out of the first (8 σ, as the press) and the last one lies
+  // back at least halfway to the first.
+  int press_cut = best, release_cut = -1;
+  double release_gain = 0;
+  for (int side = 0; side < 2; ++side) {
+    const int a = side == 0 ? 0 : best, b = side == 0 ? best : n;
+    const auto [t, cost] = best_split(a, b);
+    if (t < 0) continue;
+    const int p = side == 0 ? t : best, r = side == 0 ? best : t;
+    if (r - p < 4) continue;
+    const Eigen::Matrix<double, 64, 1> ma = mean_of(0, p), mb = mean_of(p, r), mc = mean_of(r, n);
+    const double press_step = (mb - ma).norm();
+    if ((mb - ma).cwiseAbs().maxCoeff() < 8 || (mc - ma).dot(mb - ma) / press_step > 0.5 * press_step) continue;
+    const double gain = sse(a, b) - cost;
+    if (gain > release_gain) release_gain = gain, press_cut = p, release_cut = r;
   }
-  const Eigen::Matrix<double, 64, 1> before = (prefix[best] - prefix[0]) / best;
-  const int tail = std::max(1, std::min(20, (n - best) / 4));
-  const Eigen::Matrix<double, 64, 1> final_state = (prefix[n] - prefix[n - tail]) / tail;
+  const int worn_end = release_cut < 0 ? n : release_cut;
+  const Eigen::Matrix<double, 64, 1> before = mean_of(0, press_cut);
+  const int tail = std::max(1, std::min(20, (worn_end - press_cut) / 4));
+  const Eigen::Matrix<double, 64, 1> final_state = mean_of(worn_end - tail, worn_end);
   PhaseSplit split;
   split.step_sigmas = (final_state - before).cwiseAbs().maxCoeff();  // in units of each block's noise
   if (split.step_sigmas < 8)
@@ -435,20 +471,26 @@ PhaseSplit split_phases(const CaptureSums& sums, int window_frames) {
   // Progress along the step, per frame: 0 at the baseline, `step` when settled; the
   // projection has unit noise (whitened blocks). The press starts at the first frame that
   // has left the baseline by 10 % of the step (at least 3 σ); it has settled within the same.
+  // The removal is the first frame that has left the settled state by as much.
   const double step = (final_state - before).norm();
   const Eigen::Matrix<double, 64, 1> dir = (final_state - before) / step;
   auto progress = [&](int t) { return (v[t] - before).dot(dir); };
   const double tol = std::max(0.1 * step, 3.0);
-  int press = best;
+  int press = press_cut;
   while (press > 1 && progress(press - 1) > tol) --press;
-  int settled = best;
-  while (settled < n - 1 && std::abs(progress(settled) - step) > tol) ++settled;
+  int settled = press_cut;
+  while (settled < worn_end - 1 && std::abs(progress(settled) - step) > tol) ++settled;
+  int release = release_cut;
+  if (release_cut >= 0)
+    while (release > settled + 1 && progress(release - 1) < step - tol) --release;
+  split.release_frame = release;
   split.press_frame = press;
-  split.settled_frame = std::min(settled, n - 1);
+  split.settled_frame = std::min(settled, worn_end - 1);
   const int margin = std::max(2, sums.chunk_frames);
   const int base_end = press - margin;
   split.baseline = {std::max(0, base_end - window_frames), std::min(window_frames, std::max(0, base_end))};
-  split.worn = {std::max(split.settled_frame, n - window_frames), n - std::max(split.settled_frame, n - window_frames)};
+  const int worn_stop = release < 0 ? n : std::max(split.settled_frame, release - margin);
+  split.worn = {std::max(split.settled_frame, worn_stop - window_frames), worn_stop - std::max(split.settled_frame, worn_stop - window_frames)};
   return split;
 }
 

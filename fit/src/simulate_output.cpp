@@ -211,6 +211,9 @@ void write_truth(const std::filesystem::path& dir, const PressureFieldSpec& spec
     phases.push_back({{"phase", "baseline"}, {"file", cap.files[0]}, {"first_frame", 0}, {"frames", cap.baseline_frames}});
     phases.push_back({{"phase", "worn"}, {"file", cap.files[1]}, {"first_frame", 0}, {"frames", cap.press_frames}});
   }
+  if (cap.release_frames > 0)
+    phases.push_back({{"phase", "released"}, {"file", cap.files.back()},
+                      {"first_frame", (tl.single_video ? cap.baseline_frames : 0) + cap.press_frames}, {"frames", cap.release_frames}});
   json shifts = json::array();
   for (const Vec2& s : cap.shift_px) shifts.push_back(vec(s));
   json in = json::object();
@@ -241,8 +244,13 @@ void write_truth(const std::filesystem::path& dir, const PressureFieldSpec& spec
         {"press_frames", cap.press_frames},
         {"press_start_frame", cap.press_start_frame},
         {"press_start_s", cap.baseline_frames / tl.fps},
+        {"release_frames", cap.release_frames},
+        {"press_time_s", tl.press_time_s()},
+        {"release_time_s", cap.release_frames > 0 ? json(tl.release_time_s()) : json(nullptr)},
         {"phases", phases},
-        {"blood_loss_lag", "B(t) = B_ss·(1 − exp(−(t − t_press + 1/fps)/tau_on_s)) from the first worn frame"}}},
+        {"blood_loss_lag", "B(t) = B_ss·h(t), t = frame/fps from the first frame (of the single video; of the baseline video then "
+                           "on through the worn one): h = 0 until press_time_s, then 1 − exp(−(t − press_time_s)/tau_on_s); after "
+                           "release_time_s (when there are released frames) h(release_time_s)·exp(−(t − release_time_s)/tau_off_s)"}}},
       {"camera", camera_json(cam)},
       {"motion", {{"step_px", cam.motion_step_px}, {"shift_px_per_frame", shifts},
                   {"note", "image shift of the skin at each frame (baseline frames first), px"}}},

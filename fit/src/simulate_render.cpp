@@ -64,11 +64,21 @@ void CameraSettings::validate() const {
 
 int Timeline::baseline_frames() const { return static_cast<int>(std::lround(baseline_s * fps)); }
 int Timeline::press_frames() const { return static_cast<int>(std::lround(press_s * fps)); }
+int Timeline::release_frames() const { return static_cast<int>(std::lround(release_s * fps)); }
+double Timeline::press_time_s() const { return (baseline_frames() - 1) / fps; }
+double Timeline::release_time_s() const { return (baseline_frames() + press_frames() - 1) / fps; }
+double press_lag(const Timeline& tl, const SkinParameters& skin, double t) {
+  const double tp = tl.press_time_s(), tr = tl.release_time_s();
+  if (t <= tp) return 0.0;
+  if (tl.release_frames() < 1 || t <= tr) return 1 - std::exp(-(t - tp) / skin.tau_on_s);
+  return (1 - std::exp(-(tr - tp) / skin.tau_on_s)) * std::exp(-(t - tr) / skin.tau_off_s);
+}
 void Timeline::validate() const {
   if (!(fps > 0 && fps <= 1000)) throw std::invalid_argument("Timeline.fps must be in (0, 1000]");
   if (!(baseline_s > 0 && press_s > 0) || baseline_frames() < 1 || press_frames() < 1)
     throw std::invalid_argument("Timeline: baseline_s and press_s must give at least one frame each");
   if (crf < 0 || crf > 51) throw std::invalid_argument("Timeline.crf must be in 0..51");
+  if (!(release_s >= 0 && std::isfinite(release_s))) throw std::invalid_argument("Timeline: release_s must be >= 0");
 }
 
 CaptureRenderer::CaptureRenderer(const RefractionMap& map, const ChartField& drive, const SkinParameters& skin,
@@ -456,7 +466,8 @@ CaptureSummary render_captures(const CaptureRenderer& r, const SkinParameters& s
   CaptureSummary sum;
   sum.baseline_frames = tl.baseline_frames();
   sum.press_frames = tl.press_frames();
-  const int total = sum.baseline_frames + sum.press_frames;
+  sum.release_frames = tl.release_frames();
+  const int total = sum.baseline_frames + sum.press_frames + sum.release_frames;
   sum.press_start_frame = tl.single_video ? sum.baseline_frames : 0;
   std::mt19937_64 rng(splitmix(seed ^ 0x6d6f74696f6eULL));
   std::normal_distribution<double> step(0, cam.motion_step_px);
@@ -475,8 +486,8 @@ CaptureSummary render_captures(const CaptureRenderer& r, const SkinParameters& s
   for (const auto& f : sum.files) writers.push_back(std::make_unique<CaptureWriter>(dir / f, format, tl.fps, size, tl.crf));
   std::future<void> pending;
   for (int k = 0; k < total; ++k) {
-    const double t = k / tl.fps, t_press = sum.baseline_frames / tl.fps;
-    const double h = k < sum.baseline_frames ? 0.0 : 1 - std::exp(-(t - t_press + 1 / tl.fps) / skin.tau_on_s);
+    const double t = k / tl.fps;
+    const double h = press_lag(tl, skin, t);
     auto t0 = std::chrono::steady_clock::now();
     const std::optional<FrameLight> light = photometry ? std::optional(photometry->frame(k)) : std::nullopt;
     cv::Mat frame = r.render(t, h, sum.shift_px[k], static_cast<std::uint64_t>(k), light ? &*light : nullptr);

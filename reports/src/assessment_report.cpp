@@ -7,6 +7,7 @@
 #include <clearfit/reports/assessment_tables.hpp>
 #include <clearfit/reports/chart_images.hpp>
 #include <clearfit/reports/heatmap_glb.hpp>
+#include <clearfit/reports/timeline_report.hpp>
 #include <cmath>
 #include <ctime>
 #include <cstdio>
@@ -205,9 +206,16 @@ json assessment_report_json(const Assessment& a, const AssessmentScene& scene, c
                   {"vertices_csv", "vertices.csv"},
                   {"heatmap_ply", "heatmap.ply"}};
   if (a.calibrated) outputs["heatmap_signal_glb"] = "heatmap_signal.glb";
+  if (a.time.present) {
+    outputs["timeline_csv"] = "timeline.csv";
+    outputs["timeline_time_npy"] = "timeline_time_s.npy";
+    outputs["timeline_texels_signal_npy"] = "timeline_texels_signal.npy";
+    if (a.calibrated) outputs["timeline_texels_pressure_npy"] = "timeline_texels_pressure_kpa.npy";
+  }
   json split = nullptr;
   if (a.split)
-    split = {{"press_frame", a.split->press_frame}, {"settled_frame", a.split->settled_frame}, {"step_sigmas", num(a.split->step_sigmas)}};
+    split = {{"press_frame", a.split->press_frame}, {"settled_frame", a.split->settled_frame}, {"step_sigmas", num(a.split->step_sigmas)},
+             {"release_frame", a.split->release_frame >= 0 ? json(a.split->release_frame) : json(nullptr)}};
   return {
       {"schema", "clearfit.report/1"},
       {"clearfit_version", c.clearfit_version},
@@ -268,6 +276,7 @@ json assessment_report_json(const Assessment& a, const AssessmentScene& scene, c
       {"thresholds_kpa", a.calibrated ? json(a.thresholds) : json::array()},
       {"thresholds_signal", a.calibrated ? json::array() : json(a.thresholds)},
       {"hotspots", hotspots},
+      {"timeline", timeline_json(a)},
       {"warnings", a.warnings},
       {"timings_ms", {{"decode_wait", num(a.read_ms)}, {"accumulate", num(a.work_ms)}, {"assessment", num(a.total_ms)}}},
       {"outputs", outputs}};
@@ -351,6 +360,7 @@ std::vector<std::string> write_assessment_outputs(const Assessment& a, const Ass
     });
     written.push_back("chart_points.npy");
   }
+  for (const auto& f : write_timeline_outputs(a, folder)) written.push_back(f);
   write_file_atomically(folder / "report.json", assessment_report_json(a, scene, c).dump(2) + "\n");
   written.push_back("report.json");
   return written;

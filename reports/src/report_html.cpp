@@ -560,6 +560,44 @@ std::string figure(const fs::path& folder, const json& outputs, const char* key,
          "\"><figcaption>" + html_escape(caption) + "</figcaption></figure>";
 }
 
+// The worn phase over time: one figure and one row per place (timeline of report.json).
+std::string timeline_section(const fs::path& folder, const json& report, std::vector<std::string>& notes) {
+  const json& t = at(report, "timeline");
+  if (!t.is_object()) return "<p>No time series in this assessment.</p>";
+  const json& places = at(t, "places");
+  std::string s = "<p>Time bins of " + num(at(t, "bin_s"), 3) + " s (" + num(at(t, "bins"), 0) + " bins); times from the first frame of the worn capture" +
+                  (at(t, "release_s").is_number() ? "; the part was removed at " + num(at(t, "release_s"), 2) + " s" : "") + ".</p>";
+  if (!places.is_array() || places.empty()) return s + "<p>No place to follow.</p>";
+  auto fit_text = [](const json& f, const char* what) {
+    if (!at(f, "fitted").is_boolean() || !at(f, "fitted").get<bool>()) {
+      const json& note = at(f, "note");
+      return std::string(what) + ": " + (note.is_string() ? html_escape(note.get<std::string>()) : kDash);
+    }
+    return std::string(what) + " &tau; " + num(at(f, "tau_s"), 2) + " &plusmn; " + num(at(f, "tau_sigma_s"), 2) + " s";
+  };
+  s += "<table id=\"timeline-table\" class=\"data\"><thead><tr><th>#</th><th>onset (s)</th><th>onset</th><th>refill</th><th>time above each threshold</th></tr></thead><tbody>";
+  std::string figures;
+  for (const json& p : places) {
+    const json& onset = at(p, "onset");
+    std::string above;
+    for (const json& l : at(p, "thresholds"))
+      above += (above.empty() ? "" : "; ") + num(at(l, "threshold"), 2) + " " + html_escape(at(l, "unit").get<std::string>()) + ": " +
+               num(at(l, "time_above_s"), 2) + " s";
+    s += "<tr><td>" + num(at(p, "id"), 0) + "</td><td>" + num(at(onset, "t0_s"), 3) + "</td><td>" + fit_text(onset, "rise") + "</td><td>" +
+         fit_text(at(p, "refill"), "refill") + "</td><td>" + (above.empty() ? kDash : above) + "</td></tr>";
+    const json& name = at(p, "figure");
+    if (!name.is_string()) continue;
+    if (!fs::is_regular_file(folder / name.get<std::string>())) {
+      notes.push_back((folder / name.get<std::string>()).string() + " is missing: its figure is left out");
+      continue;
+    }
+    figures += "<figure><img alt=\"place " + num(at(p, "id"), 0) + " over time\" src=\"data:image/png;base64," +
+               base64(read_binary(folder / name.get<std::string>())) + "\"><figcaption>Place " + num(at(p, "id"), 0) +
+               " over time: its signal, the thresholds (dashed), the onset and the removal</figcaption></figure>";
+  }
+  return s + "</tbody></table><div class=\"figures\">" + figures + "</div>";
+}
+
 std::string summary(const json& report, bool calibrated) {
   const json& hotspots = at(report, "hotspots");
   const std::size_t n = hotspots.is_array() ? hotspots.size() : 0;
@@ -672,6 +710,7 @@ HtmlReportResult write_report_html(const fs::path& folder, const HtmlReportOptio
   body += "<section id=\"warnings\"><h2>Warnings</h2>" + warnings + "</section>";
   body += std::string("<section id=\"hotspots\"><h2>") + (calibrated ? "Hotspots" : "Regions of significant blanching") + "</h2>" +
           hotspot_table(report, calibrated) + "</section>";
+  body += "<section id=\"timeline\"><h2>Over time</h2>" + timeline_section(folder, report, result.notes) + "</section>";
   body += "<section id=\"chart\"><h2>The contact surface, unrolled</h2><div class=\"figures\">" +
           figure(folder, outputs, "chart_pressure_png", calibrated ? "Pressure on the chart, hotspots outlined" : "Blanching signal on the chart, regions outlined", result.notes) +
           (calibrated ? figure(folder, outputs, "chart_signal_png", "Blanching signal on the chart", result.notes) : "") + "</div></section>";

@@ -294,8 +294,16 @@ struct GlareSection {
   void validate() const;
 };
 
+/// `assess.timeseries`: the worn phase over time (fit/timeseries.hpp).
+struct TimeSeriesSection {
+  TimeSeriesOptions options;
+  void bind(SceneFields& f);
+  void validate() const;
+};
+
 struct AssessSection {
   GlareSection glare;
+  TimeSeriesSection timeseries;
   bool normalise_exposure = AssessmentOptions{}.normalise_gains;  ///< per-chunk exposure / white-balance / flicker gains
   double smoothing_mm = BlanchingOptions{}.smoothing_mm;
   std::vector<double> thresholds_kpa = AssessmentOptions{}.thresholds_kpa;

@@ -10,6 +10,7 @@
 #include <clearfit/fit/glare.hpp>
 #include <clearfit/fit/hotspots.hpp>
 #include <clearfit/fit/pressure_model.hpp>
+#include <clearfit/fit/timeseries.hpp>
 #include <clearfit/refraction/inverse_map.hpp>
 #include <clearfit/refraction/map.hpp>
 
@@ -37,6 +38,7 @@ struct AssessmentOptions {
   std::vector<double> signal_thresholds;
   double signal_threshold_sigmas = 5.0;
   double min_hotspot_area_mm2 = 0.05;
+  TimeSeriesOptions timeseries;          ///< the worn phase over time (timeseries.hpp)
   double max_saturated_fraction = 0.02;  ///< more saturated pixels than this in a window is an error
   double min_mean_code = 10.0;           ///< a darker window (mean 8-bit green) is an error
   /// Progress: stage name, done, total (0: unknown).
@@ -86,6 +88,7 @@ struct Assessment {
   Coverage coverage;
   GlareMask glare;                           ///< the glare mask in the camera image (roi of the captures)
   std::vector<std::uint8_t> glare_texels;    ///< per chart texel: 1 = masked as glare
+  TimeAnalysis time;                         ///< the worn phase over time (timeseries.hpp); present = false when off
   std::vector<std::string> warnings;
   double read_ms = 0, work_ms = 0, total_ms = 0;
 };

@@ -36,8 +36,14 @@ struct CaptureReadOptions {
   double max_motion_px = 10.0;    ///< motion beyond this (against the reference) is refused
   int expected_width = 0, expected_height = 0;  ///< the camera's imager; 0: not checked
   std::string role;               ///< "baseline", "worn" or "capture", for messages
+  /// Bounded memory: keep the chunk sums of the last this many frames only (older ones are
+  /// released as the read goes; windows must lie in the kept frames). 0: keep every chunk.
+  int keep_last_frames = 0;
   /// Called after each frame (frames done, frames expected or 0 if unknown).
   std::function<void(int, int)> progress;
+  /// Called with each frame as decoded and the integer shift it was accumulated at (aligned
+  /// pixel (x, y) of the roi is the frame's roi.tl() + (x, y) + shift), e.g. for time series.
+  std::function<void(const cv::Mat&, cv::Point)> on_frame;
 };
 
 /// The registration reference: a patch of the first baseline frame. Shared by
@@ -55,6 +61,7 @@ struct CaptureSums {
   int chunk_frames = 0;
   std::vector<cv::Mat> chunk_sum;      ///< CV_32F (roi size) sums of linear green, aligned to the reference
   std::vector<int> chunk_count;        ///< frames in each chunk
+  int released_chunks = 0;             ///< chunks [0, released_chunks) had their sums released (keep_last_frames)
   std::vector<cv::Mat> chunk_blue;     ///< CV_32F (half_grid of the roi) sums of linear blue, aligned (empty without `colour`)
   std::vector<Vec2> shift_px;          ///< per frame: content displacement against the reference, px
   std::vector<cv::Point> applied_shift;  ///< per frame: integer shift undone while accumulating
@@ -107,10 +114,14 @@ PhaseAverage average_window(const CaptureSums& sums, FrameWindow window, int min
 /// the per-frame block statistics (two-segment least squares), the end of the
 /// press's transient (the statistics within 10 % of their final value), and
 /// returns the last `window` frames before the step (minus a margin) and the
-/// last `window` frames of the settled press.
+/// last `window` frames of the settled press (before the part's removal, when the capture
+/// goes on after it: a second step back toward the baseline).
 struct PhaseSplit {
   int press_frame = 0;          ///< first frame of the press
   int settled_frame = 0;        ///< first frame within 10 % of the final state
+  /// First frame after the part's removal (a second step back toward the baseline; the worn
+  /// window ends before it), or -1 when the capture ends worn.
+  int release_frame = -1;
   FrameWindow baseline, worn;
   double step_sigmas = 0;       ///< size of the step in units of the frame-to-frame noise
 };

@@ -142,12 +142,26 @@ struct Timeline {
   double fps = 60;
   double baseline_s = 4;  ///< not pressed
   double press_s = 3;     ///< pressed: B rises with τ_on from the first press frame
+  /// After removal of the part (0: the capture ends pressed): B refills with τ_off. These
+  /// frames follow the pressed ones in the same video (the worn one, or the single one).
+  double release_s = 0;
   bool single_video = false;  ///< one video holding both phases (else baseline and worn)
   int crf = 23;               ///< h264 only: libx264's constant rate factor (0 lossless … 51; phones film at about 18–28)
   int baseline_frames() const;
   int press_frames() const;
+  int release_frames() const;
+  /// Press and removal times (s, on the clock of the first frame, t = k/fps): the lag starts
+  /// one frame period before the first pressed (first released) frame, so that frame already
+  /// carries 1/fps of the response.
+  double press_time_s() const;
+  double release_time_s() const;
   void validate() const;
 };
+
+/// The press lag h(t) in [0, 1] (B = h·B_ss) at time t on the clock of the first
+/// frame: 0 before the press, 1 − exp(−(t − t_press)/τ_on) while pressed, and after
+/// removal h(t_release)·exp(−(t − t_release)/τ_off). t in seconds.
+double press_lag(const Timeline& timeline, const SkinParameters& skin, double t_s);
 
 /// Per-pixel static terms, then frames. Not copyable (large); thread-safe render().
 class CaptureRenderer {
@@ -237,7 +251,7 @@ class CaptureWriter {
 
 struct CaptureSummary {
   std::vector<std::string> files;       ///< file or folder names written, in order
-  int baseline_frames = 0, press_frames = 0;
+  int baseline_frames = 0, press_frames = 0, release_frames = 0;
   int press_start_frame = 0;            ///< first pressed frame (in the single video, or 0 in worn)
   std::vector<Vec2> shift_px;           ///< per frame (baseline then press)
   double render_ms = 0, write_ms = 0;
