@@ -443,18 +443,31 @@ PhaseSplit split_phases(const CaptureSums& sums, int window_frames) {
   // The part may be removed before the capture ends: a second step, back toward the baseline.
   // Binary segmentation: the best further split on either side of the first; it is the removal
   // when the middle segment stands out of the first (8 σ, as the press) and the last one lies
-  // back at least halfway to the first.
+  // back toward the first by 10 % of the press (at least 3 σ; a press's own rise goes the other way).
   int press_cut = best, release_cut = -1;
   double release_gain = 0;
+  // The last frame on the worn plateau before `r` (the split may fall inside a slow refill): the
+  // plateau is the 90th percentile of the progress along the press over [p, r); frames below it
+  // by 10 % (at least 3 σ) at the end are refill.
+  auto plateau_end = [&](int p, int r) {
+    const Eigen::Matrix<double, 64, 1> ma = mean_of(0, p), d = (mean_of(p, r) - ma).normalized();
+    std::vector<double> on;
+    for (int t = p; t < r; ++t) on.push_back((v[t] - ma).dot(d));
+    std::nth_element(on.begin(), on.begin() + on.size() * 9 / 10, on.end());
+    const double plateau = on[on.size() * 9 / 10], margin = std::max(0.1 * plateau, 3.0);
+    while (r > p + 4 && (v[r - 1] - ma).dot(d) < plateau - margin) --r;
+    return r;
+  };
   for (int side = 0; side < 2; ++side) {
     const int a = side == 0 ? 0 : best, b = side == 0 ? best : n;
     const auto [t, cost] = best_split(a, b);
     if (t < 0) continue;
-    const int p = side == 0 ? t : best, r = side == 0 ? best : t;
-    if (r - p < 4) continue;
+    const int p = side == 0 ? t : best;
+    if ((side == 0 ? best : t) - p < 4) continue;
+    const int r = plateau_end(p, side == 0 ? best : t);
     const Eigen::Matrix<double, 64, 1> ma = mean_of(0, p), mb = mean_of(p, r), mc = mean_of(r, n);
-    const double press_step = (mb - ma).norm();
-    if ((mb - ma).cwiseAbs().maxCoeff() < 8 || (mc - ma).dot(mb - ma) / press_step > 0.5 * press_step) continue;
+    const double press_step = (mb - ma).norm(), drop = (mb - mc).dot(mb - ma) / press_step;
+    if ((mb - ma).cwiseAbs().maxCoeff() < 8 || drop < std::max(0.1 * press_step, 3.0)) continue;
     const double gain = sse(a, b) - cost;
     if (gain > release_gain) release_gain = gain, press_cut = p, release_cut = r;
   }

@@ -69,7 +69,7 @@ BinnedSeries make_series(const std::function<double(double)>& y, int frames, int
 }
 
 TEST(TimeConstantFits, RefillRecoversTau) {
-  // τ between 0.3 and 3 s, sampled per frame and per 4 frames, with noise of 2 % of the step.
+  // τ between 0.3 and 3 s, sampled per frame and per 4 frames, with noise of 2 % of the step per frame: within 10 %.
   for (double tau : {0.37, 0.85, 1.9, 2.8})
     for (int m : {1, 4}) {
       const double fps = 30, tr = 2.0, a = 0.05, c = 0.002;
@@ -78,7 +78,7 @@ TEST(TimeConstantFits, RefillRecoversTau) {
       const BinnedSeries s = make_series(y, frames, m, fps, 0.001, 7, static_cast<int>(tr * fps));
       const TimeConstantFit f = fit_refill(s, tr);
       ASSERT_TRUE(f.fitted) << f.note;
-      EXPECT_NEAR(f.tau_s, tau, 0.05 * tau) << "m " << m;
+      EXPECT_NEAR(f.tau_s, tau, 0.10 * tau) << "m " << m;
       EXPECT_GT(f.tau_sigma_s, 0);
       EXPECT_LT(std::abs(f.tau_s - tau), 5 * f.tau_sigma_s + 0.01 * tau);
       EXPECT_NEAR(f.offset, c, 0.003);
