@@ -71,22 +71,19 @@ void TimeSeriesRecorder::merge_pairs() {
   bin_frames_ *= 2;
 }
 
-void TimeSeriesRecorder::add(const cv::Mat& frame_in, cv::Point d) {
-  cv::Mat frame = frame_in;
-  if (frame.depth() != CV_8U) frame_in.convertTo(frame, CV_8U, frame_in.depth() == CV_16U ? 1.0 / 257 : 1.0);
-  if (frame.type() != CV_8UC3) throw std::invalid_argument("TimeSeriesRecorder::add: expected a BGR frame");
-  const float* lut = srgb::to_linear_table8();
+void TimeSeriesRecorder::add(const cv::Mat& frame, cv::Point d) {
+  if (frame.type() != CV_8UC3 && frame.type() != CV_16UC3) throw std::invalid_argument("TimeSeriesRecorder::add: expected a BGR frame, 8 or 16 bits");
   std::fill(row_.begin(), row_.end(), 0.f);
   // Every other row and column: the cells' means, not their detail, are kept.
-  for (int y = 0; y < roi_.height; y += 2) {
-    const int sy = std::clamp(roi_.y + y + d.y, 0, frame.rows - 1);
-    const auto* src = frame.ptr<cv::Vec3b>(sy);
-    float* cells = row_.data() + static_cast<std::size_t>(y / cell_px_) * cells_.width;
-    for (int x = 0; x < roi_.width; x += 2) {
-      const int sx = std::clamp(roi_.x + x + d.x, 0, frame.cols - 1);
-      cells[x / cell_px_] += lut[src[sx][1]];
+  auto sum_rows = [&]<class Pixel>(const float* lut) {
+    for (int y = 0; y < roi_.height; y += 2) {
+      const auto* src = frame.ptr<Pixel>(std::clamp(roi_.y + y + d.y, 0, frame.rows - 1));
+      float* cells = row_.data() + static_cast<std::size_t>(y / cell_px_) * cells_.width;
+      for (int x = 0; x < roi_.width; x += 2) cells[x / cell_px_] += lut[src[std::clamp(roi_.x + x + d.x, 0, frame.cols - 1)][1]];
     }
-  }
+  };
+  if (frame.depth() == CV_8U) sum_rows.operator()<cv::Vec3b>(srgb::to_linear_table8());
+  else sum_rows.operator()<cv::Vec3w>(srgb::to_linear_table16());
   // Samples per cell: the even offsets inside it.
   for (int j = 0; j < cells_.height; ++j) {
     const int h = std::min(cell_px_, roi_.height - j * cell_px_), y0 = j * cell_px_;

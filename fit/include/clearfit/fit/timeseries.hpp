@@ -56,7 +56,7 @@ class TimeSeriesRecorder {
  public:
   /// `roi`: the capture's roi (CaptureSums::roi); `expected_frames` (0: unknown) sizes the first allocation.
   TimeSeriesRecorder(const cv::Rect& roi, const TimeSeriesOptions& options, int expected_frames = 0);
-  /// Adds one BGR8 frame whose content is aligned to the reference at integer shift `shift`
+  /// Adds one BGR frame (8 or 16 bits, sRGB-encoded) whose content is aligned to the reference at integer shift `shift`
   /// (aligned pixel (x, y) of the roi reads the frame at roi.tl() + (x, y) + shift, clamped).
   void add(const cv::Mat& frame, cv::Point shift);
   int frames() const { return frames_; }
