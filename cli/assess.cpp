@@ -13,47 +13,14 @@
 #include <cmath>
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/npy.hpp>
+#include <clearfit/output_folder.hpp>
 #include <fstream>
 #include <iostream>
-#include <unistd.h>
 
 namespace clearfit::cli {
 namespace {
 
 namespace fs = std::filesystem;
-
-/// Outputs go to a staging folder beside the target, which replaces the target
-/// only when everything is written: a failed run leaves the old folder as it was.
-class StagedFolder {
- public:
-  explicit StagedFolder(fs::path target) : target_(std::move(target)) {
-    const fs::path parent = target_.parent_path().empty() ? fs::path(".") : target_.parent_path();
-    std::error_code ec;
-    fs::create_directories(parent, ec);
-    if (!fs::is_directory(parent))
-      throw InputError(target_.string(), "", "the folder " + parent.string() + " cannot be created", "check the path and its permissions");
-    staging_ = parent / ("." + target_.filename().string() + ".partial-" + std::to_string(::getpid()));
-    fs::remove_all(staging_);
-    fs::create_directories(staging_);
-  }
-  ~StagedFolder() {
-    std::error_code ignored;
-    if (!committed_) fs::remove_all(staging_, ignored);
-  }
-  const fs::path& path() const { return staging_; }
-  void commit() {
-    const fs::path old = target_.parent_path() / ("." + target_.filename().string() + ".old-" + std::to_string(::getpid()));
-    std::error_code ec;
-    if (fs::exists(target_)) fs::rename(target_, old);
-    fs::rename(staging_, target_);
-    fs::remove_all(old, ec);
-    committed_ = true;
-  }
-
- private:
-  fs::path target_, staging_;
-  bool committed_ = false;
-};
 
 /// Progress lines on stderr: "  stage 10% 20% ...".
 std::function<void(const std::string&, int, int)> progress_printer(bool quiet) {

@@ -3,6 +3,7 @@
 #include <clearfit/cli/commands.hpp>
 
 #include <clearfit/atomic_file.hpp>
+#include <clearfit/output_folder.hpp>
 #include <clearfit/camera/board.hpp>
 #include <clearfit/camera/calibrate.hpp>
 #include <clearfit/camera/camera_model.hpp>
@@ -124,13 +125,6 @@ void print_summary(const CalibrationResult& r, std::ostream& out) {
               : ", uncertainty " + std::to_string(r.uncertainty_seconds).substr(0, 5) + " s")
       << "\n";
   for (const auto& w : r.warnings) out << "warning: " << w << "\n";
-}
-
-void check_output_folder(const std::string& path) {
-  if (path.empty()) return;
-  const auto parent = fs::path(path).parent_path();
-  if (!parent.empty() && !fs::is_directory(parent))
-    throw InputError(path, "", "the folder " + parent.string() + " does not exist", "create it first");
 }
 
 }  // namespace

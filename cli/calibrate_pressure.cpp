@@ -226,7 +226,9 @@ Run add_calibrate_pressure(CLI::App& app) {
       const std::filesystem::path path = outputs[i].second;
       const std::filesystem::path dir = path.parent_path().empty() ? "." : path.parent_path();
       if (!std::filesystem::is_directory(dir))
-        throw InputError(outputs[i].second, outputs[i].first, "its folder does not exist", "create the folder first");
+        throw InputError(outputs[i].second, outputs[i].first,
+                         std::filesystem::exists(dir) ? dir.string() + " is a file, not a folder" : "its folder does not exist",
+                         "create the folder first");
       std::error_code ec;
       if (std::filesystem::equivalent(path, o->presses, ec))
         throw InputError(outputs[i].second, outputs[i].first, "would overwrite the presses file");

@@ -1,5 +1,6 @@
 // clearfit map: the refraction map of a part seen by a camera (pixel -> skin point).
 #include <clearfit/cli/commands.hpp>
+#include <clearfit/output_folder.hpp>
 #include <clearfit/cli/part_setup.hpp>
 #include <clearfit/cli/scene.hpp>
 
@@ -10,6 +11,7 @@
 #include <clearfit/refraction/inverse_map.hpp>
 #include <clearfit/refraction/map_cache.hpp>
 #include <cstdlib>
+#include <set>
 #include <sstream>
 #include <cmath>
 #include <iostream>
@@ -60,12 +62,13 @@ Run add_map(CLI::App& app) {
 
   return [o]() {
     const OutputsSection& out = o->scene.outputs;
+    // Folders of the scene's outputs that do not exist yet are created when the
+    // outputs are written; the command line's must exist.
+    std::set<std::string> may_create;
     if (!o->scene_file.empty()) {
       read_scene(o->scene_file, o->scene, o->options);
-      // The scene's output folders are created (nothing is written into them yet).
       for (const auto& [key, path] : {std::pair{"outputs.map", out.map}, {"outputs.stats", out.stats}, {"outputs.inverse", out.inverse}})
-        if (!path.empty() && !given_on_command_line(o->options, key) && !std::filesystem::path(path).parent_path().empty())
-          std::filesystem::create_directories(std::filesystem::path(path).parent_path());
+        if (!path.empty() && !given_on_command_line(o->options, key)) may_create.insert(path);
     } else {
       check_scene(o->scene, o->options);
     }
@@ -73,11 +76,7 @@ Run add_map(CLI::App& app) {
       throw InputError("", "--out", "is required", "give it on the command line or as 'outputs.map' in a --scene file");
     // Output folders are checked before the work, so a bad path fails fast and leaves nothing.
     for (const std::string& path : {out.map, out.stats, out.inverse})
-      if (!path.empty()) {
-        const auto parent = std::filesystem::path(path).parent_path();
-        if (!parent.empty() && !std::filesystem::is_directory(parent))
-          throw InputError(path, "", "the folder " + parent.string() + " does not exist", "create it first");
-      }
+      if (!path.empty()) check_output_folder(path, may_create.count(path) > 0);
     const auto part = load_part_scene(o->scene, !out.inverse.empty(), std::cerr);
     std::string cache;
     const RefractionMap map = compute_part_map(*part, o->cache, &cache);
@@ -100,7 +99,10 @@ Run add_map(CLI::App& app) {
     // Both outputs are rendered before either is written, so a failure leaves neither.
     // All outputs or none: a failure removes what this run already wrote.
     std::vector<std::string> written;
+    std::vector<std::filesystem::path> created;
     try {
+      for (const std::string& path : may_create)
+        for (auto& c : create_output_folders(path)) created.push_back(std::move(c));
       write_skin_points_npy(map, out.map);
       written.push_back(out.map);
       if (inverse) {
@@ -111,6 +113,7 @@ Run add_map(CLI::App& app) {
     } catch (...) {
       std::error_code ignored;
       for (const auto& w : written) std::filesystem::remove(w, ignored);
+      for (auto it = created.rbegin(); it != created.rend(); ++it) std::filesystem::remove(*it, ignored);  // only if empty
       throw;
     }
     std::cout << "map " << map.width << " x " << map.height << ": " << map.stats.by_status[0] << " valid pixels ("

@@ -3,9 +3,12 @@
 #include <clearfit/cli/scene.hpp>
 
 #include <clearfit/error.hpp>
+#include <clearfit/utf8.hpp>
 #include <clearfit/geometry/import.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <fstream>
 #include <sstream>
 
 namespace clearfit::cli {
@@ -26,6 +29,20 @@ void SceneReader::only_keys(const YAML::Node& map, const std::string& prefix, co
       for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
       fail(kv.first, prefix.empty() ? key : prefix + "." + key, "unknown key (expected one of: " + list + ")");
     }
+  }
+}
+
+// yaml-cpp keeps the first of two equal keys and drops the second without a word.
+void SceneReader::no_duplicate_keys(const YAML::Node& node, const std::string& prefix) const {
+  if (node.IsSequence())
+    for (std::size_t i = 0; i < node.size(); ++i) no_duplicate_keys(node[i], prefix + "[" + std::to_string(i) + "]");
+  if (!node.IsMap()) return;
+  std::set<std::string> seen;
+  for (const auto& kv : node) {
+    const std::string key = kv.first.IsScalar() ? kv.first.Scalar() : std::string("(a list or map as key)");
+    const std::string full = prefix.empty() ? key : prefix + "." + key;
+    if (!seen.insert(key).second) fail(kv.first, full, "is given twice; keep one");
+    no_duplicate_keys(kv.second, full);
   }
 }
 
@@ -149,8 +166,9 @@ void PartSection::bind(SceneFields& f) {
 void PartSection::validate() const {
   if (!units.empty() && !parse_length_unit(units)) rule_broken("units", units, "one of um, mm, cm, m, in, ft");
   for (auto [key, value] : {std::pair{"ior", indices.n_part}, {"medium_ior", indices.n_medium}, {"skin_ior", indices.n_skin}})
-    if (!(std::isfinite(value) && value >= 1.0))
-      rule_broken(key, value, "a finite index of refraction >= 1 (air 1.0, water 1.333, acrylic 1.49, clear resins 1.49-1.55)");
+    if (!(std::isfinite(value) && value >= 1.0 && value <= 3.0))
+      rule_broken(key, value, "an index of refraction from 1 to 3 (air 1.0, water 1.333, acrylic 1.49, clear resins 1.49-1.55; "
+                              "an index equal to the medium's is valid)");
   try {
     contact.validate();
   } catch (const SceneRuleError& e) {
@@ -331,9 +349,17 @@ SceneFields::Options add_scene_options(CLI::App& sub, Scene& scene, const std::v
 void read_scene(const std::filesystem::path& file, Scene& scene, const SceneFields::Options& options) {
   if (std::filesystem::is_directory(file)) throw InputError(file.string(), "", "is a directory, expected a scene file (YAML)");
   if (!std::filesystem::exists(file)) throw InputError(file.string(), "", "scene file not found");
+  std::ifstream in(file, std::ios::binary);
+  std::ostringstream buffer;
+  buffer << in.rdbuf();
+  if (!in) throw InputError(file.string(), "", "cannot read the scene file", "check its permissions");
+  const std::string text = buffer.str();
+  if (const auto bad = first_invalid_utf8(text); bad != std::string::npos)
+    throw InputError(file.string(), "line " + std::to_string(1 + std::count(text.begin(), text.begin() + static_cast<long>(bad), '\n')),
+                     "is not UTF-8 text", "save the scene file as UTF-8");
   YAML::Node root;
   try {
-    root = YAML::LoadFile(file.string());
+    root = YAML::Load(text);
   } catch (const YAML::ParserException& e) {
     throw InputError(file.string(), "line " + std::to_string(e.mark.line + 1) + ", column " + std::to_string(e.mark.column + 1),
                      "not valid YAML: " + e.msg);
@@ -343,6 +369,7 @@ void read_scene(const std::filesystem::path& file, Scene& scene, const SceneFiel
   if (!root || root.IsNull()) throw InputError(file.string(), "", "is empty", "see the scene file format in README.md");
   const SceneReader reader(file);
   if (!root.IsMap()) reader.fail(root, "", "expected a mapping of keys to values");
+  reader.no_duplicate_keys(root, "");
   scene.file = file;
   SceneFields f(root, reader, options);
   scene.bind(f);

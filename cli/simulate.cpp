@@ -2,6 +2,7 @@
 // worn videos), their ground truth, and calibration presses, from the scene
 // file's common keys and its `simulation:` section.
 #include <clearfit/cli/commands.hpp>
+#include <clearfit/output_folder.hpp>
 #include <clearfit/cli/part_setup.hpp>
 #include <clearfit/cli/scene.hpp>
 #include <clearfit/cli/simulate_photometric.hpp>
@@ -88,6 +89,10 @@ Run add_simulate(CLI::App& app) {
     const bool want_captures = !o->presses_only, want_presses = !o->no_presses && spec.presses.has_value();
     if (o->presses_only && !spec.presses)
       throw InputError(o->scene_file, "key 'simulation.presses'", "missing, but --presses-only was given");
+    // Everything goes into a staging folder that replaces `out` at the end (crash-safe, see output_folder.hpp);
+    // --presses-only adds to the folder as it is.
+    StagedFolder staged(out, o->presses_only);
+    const std::filesystem::path& dir = staged.path();
     auto say = [&](const std::string& s) {
       if (!o->quiet) std::cerr << "clearfit simulate: " << s << "\n";
     };
@@ -132,12 +137,11 @@ Run add_simulate(CLI::App& app) {
       const ChartField drive = skin_drive(spec.skin, truth.pressure);
       const sim::CaptureRenderer renderer(map, drive, spec.skin, spec.camera, spec.seed);
       say("skin model and per-pixel terms ready (" + std::to_string(seconds_since(t0)).substr(0, 4) + " s)");
-      std::filesystem::create_directories(out);
       int last_decile = -1;
       std::optional<sim::PhotometricSchedule> photometry;
       if (spec.photometric.any()) photometry.emplace(spec.photometric, spec.camera, spec.timeline, cv::Size(map.width, map.height));
       const sim::CaptureSummary cap = sim::render_captures(
-          renderer, spec.skin, spec.timeline, spec.camera, spec.format, out, spec.seed, [&](int done, int total) {
+          renderer, spec.skin, spec.timeline, spec.camera, spec.format, dir, spec.seed, [&](int done, int total) {
             const int decile = 10 * done / total;
             if (decile != last_decile) {
               last_decile = decile;
@@ -148,16 +152,16 @@ Run add_simulate(CLI::App& app) {
       if (!sc.part.pose.empty()) inputs.emplace_back("pose", sc.part.pose);
       if (spec.pressure_map) inputs.emplace_back("pressure_map", *spec.pressure_map);
       if (spec.scale != 1.0) {
-        write_cameramodel(camera, out / "camera.cameramodel");
+        write_cameramodel(camera, dir / "camera.cameramodel");
         inputs.emplace_back("scaled_camera", "camera.cameramodel");
         written.push_back("camera.cameramodel");
       }
-      sim::write_truth(out, spec.field, truth, spec.skin, spec.camera, spec.timeline, cap, spec.format,
+      sim::write_truth(dir, spec.field, truth, spec.skin, spec.camera, spec.timeline, cap, spec.format,
                        {map.width, map.height}, spec.seed, inputs);
       for (const auto& f : cap.files) written.push_back(f);
       for (const char* f : {"truth.json", "truth_pressure.npy", "truth_vertex_pressure.npy"}) written.emplace_back(f);
       if (photometry)
-        for (const auto& f : photometry->write_truth(out)) written.push_back(f);
+        for (const auto& f : photometry->write_truth(dir)) written.push_back(f);
       const int frames = cap.baseline_frames + cap.press_frames + cap.release_frames;
       std::ostringstream s;
       s.precision(3);
@@ -177,13 +181,13 @@ Run add_simulate(CLI::App& app) {
       }
     }
     if (want_presses) {
-      std::filesystem::create_directories(out);
       const auto trials = sim::simulate_presses(spec.skin, spec.camera, *spec.presses, spec.seed);
-      sim::write_presses_csv(trials, out / "presses.csv");
-      sim::write_presses_truth(out / "presses-truth.json", spec.skin, spec.camera, *spec.presses, spec.seed);
+      sim::write_presses_csv(trials, dir / "presses.csv");
+      sim::write_presses_truth(dir / "presses-truth.json", spec.skin, spec.camera, *spec.presses, spec.seed);
       written.emplace_back("presses.csv");
       written.emplace_back("presses-truth.json");
     }
+    staged.commit();
     std::cout << "wrote into " << out.string() << ":";
     for (const auto& w : written) std::cout << " " << w;
     std::cout << " (" << std::to_string(seconds_since(t_start)).substr(0, 5) << " s)\n";

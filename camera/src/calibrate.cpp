@@ -255,6 +255,17 @@ CalibrationResult calibrate_camera(const std::vector<BoardObservation>& views, c
                            first_sized->image + " (" + std::to_string(first_sized->width) + " x " +
                            std::to_string(first_sized->height) + ")",
                        "calibrate one camera at one resolution; remove or resize the odd images");
+    if (v.width > CameraModel::kMaxImagerSide || v.height > CameraModel::kMaxImagerSide)
+      throw InputError(v.image, "image size", std::to_string(v.width) + " x " + std::to_string(v.height) + " is larger than any imager");
+    for (std::size_t c = 0; c < v.corners.size(); ++c) {
+      const auto& p = v.corners[c];
+      // A corner more than an imager away from the imager is no detection of it (a typo, a unit error).
+      if (present(p) && (std::abs(p.x() - 0.5 * v.width) > 1.5 * v.width || std::abs(p.y() - 0.5 * v.height) > 1.5 * v.height))
+        throw InputError(v.image, "corner " + std::to_string(c),
+                         "at (" + std::to_string(p.x()) + ", " + std::to_string(p.y()) + ") px lies far outside the " +
+                             std::to_string(v.width) + " x " + std::to_string(v.height) + " imager",
+                         "check the corners file and the image size");
+    }
     const int n = static_cast<int>(std::count_if(v.corners.begin(), v.corners.end(), present));
     if (n < 4) {
       res.notes.push_back(v.image + ": " +

@@ -99,6 +99,13 @@ std::optional<Problem> find_problem(const CameraModel& m) {
                    "must be two positive integers, found " + std::to_string(m.width) + " x " +
                        std::to_string(m.height),
                    ""};
+  // Bounded before anything per pixel is allocated (a map, an image).
+  if (m.width > CameraModel::kMaxImagerSide || m.height > CameraModel::kMaxImagerSide ||
+      static_cast<std::int64_t>(m.width) * m.height > CameraModel::kMaxImagerPixels)
+    return Problem{"imagersize",
+                   std::to_string(m.width) + " x " + std::to_string(m.height) + " is larger than any camera's imager (at most " +
+                       std::to_string(CameraModel::kMaxImagerSide) + " px a side and " + std::to_string(CameraModel::kMaxImagerPixels / 1000000) + " Mpx)",
+                   "give the image size in pixels the camera was calibrated at"};
   if (!m.cam_from_part.rotation.allFinite() || !m.cam_from_part.translation.allFinite())
     return Problem{"extrinsics", "is not finite", ""};
   // The imager size must belong to this lens: a principal point more than half

@@ -115,6 +115,8 @@ Rigid3 read_pose_json(const std::filesystem::path& path) {
   } catch (const nlohmann::json::parse_error& e) {
     throw InputError(file, line_and_column(text, e.byte > 0 ? e.byte - 1 : 0),
                      std::string("is not valid JSON: ") + e.what());
+  } catch (const nlohmann::json::exception& e) {  // a number beyond double's range (1e309)
+    throw InputError(file, "", std::string("is not valid JSON: ") + e.what(), "numbers must be finite doubles");
   }
   if (!j.is_object()) throw InputError(file, "top level", "must be a JSON object");
   if (!j.contains("schema") || !j["schema"].is_string() || j["schema"].get<std::string>() != kPoseSchema)

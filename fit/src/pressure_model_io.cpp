@@ -2,6 +2,7 @@
 // calibration JSON (`clearfit.pressure-calibration/1`).
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/error.hpp>
+#include <clearfit/utf8.hpp>
 #include <clearfit/fit/pressure_model.hpp>
 
 #include <nlohmann/json.hpp>
@@ -92,6 +93,9 @@ std::vector<CalibrationPress> read_presses_csv(const std::filesystem::path& path
   while (std::getline(in, line)) {
     ++line_no;
     if (!line.empty() && line.back() == '\r') line.pop_back();
+    if (const auto bad = first_invalid_utf8(line); bad != std::string::npos)
+      throw InputError(file, "line " + std::to_string(line_no) + ", column " + std::to_string(bad + 1),
+                       "is not UTF-8 text", "save the file as UTF-8 (trial labels and column names go into JSON outputs)");
     const std::string t = trim(line);
     if (t.empty() || t[0] == '#') continue;
     const std::vector<std::string> fields = split_commas(line);
@@ -228,6 +232,8 @@ PressureCalibration read_pressure_calibration(const std::filesystem::path& path)
     const std::size_t upto = std::min<std::size_t>(e.byte, text.size());
     const long line = 1 + std::count(text.begin(), text.begin() + static_cast<long>(upto), '\n');
     throw InputError(file, "line " + std::to_string(line), "is not valid JSON", "a clearfit.pressure-calibration/1 file");
+  } catch (const json::exception& e) {  // a number beyond double's range (1e309)
+    throw InputError(file, "", std::string("is not valid JSON: ") + e.what(), "numbers must be finite doubles");
   }
   if (!j.is_object()) throw InputError(file, "top level", "expected a JSON object");
   // A required key of the given JSON type, named with its dotted path.

@@ -1,5 +1,6 @@
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/error.hpp>
+#include <clearfit/output_folder.hpp>
 
 #include <atomic>
 #include <fstream>
@@ -21,12 +22,12 @@ void write_path_atomically(const std::filesystem::path& path,
   if (path.empty()) throw InputError("", "output path", "is empty");
   if (std::filesystem::is_directory(path))
     throw InputError(path.string(), "", "is a directory, expected a file name for the output");
-  const auto parent = path.parent_path();
-  if (!parent.empty() && !std::filesystem::is_directory(parent))
-    throw InputError(path.string(), "", "the folder " + parent.string() + " does not exist", "create it first");
+  check_output_folder(path);
+  remove_stale_temporaries(path);
   const auto tmp = temporary_beside(path);
   try {
     write(tmp);
+    pause_point("file-written");
     std::error_code ec;
     std::filesystem::rename(tmp, path, ec);
     if (ec) throw InputError(path.string(), "", "cannot write the output: " + ec.message());

@@ -8,6 +8,7 @@
 #include <filesystem>
 #include <optional>
 #include <algorithm>
+#include <cstdint>
 #include <string>
 #include <string_view>
 #include <vector>
@@ -60,6 +61,14 @@ class LineCursor {
 std::vector<std::string_view> split_ws(std::string_view line);
 /// Parses a whole token as a double ("nan"/"inf" parse, a leading '+' is allowed); false if it is no number.
 bool parse_double(std::string_view token, double& value);
+
+/// What a PLY or OFF file declares, after its whole structure was checked against
+/// what the file holds (import_ply_off_check.cpp); InputError naming the line otherwise.
+struct PlyOffCounts {
+  std::uint64_t vertices = 0, faces = 0;
+};
+PlyOffCounts check_ply(const std::string& text, const std::string& name);
+PlyOffCounts check_off(const std::string& text, const std::string& name);
 
 RawMesh read_stl(const std::filesystem::path& path);
 RawMesh read_ply_off(const std::filesystem::path& path, const std::string& ext);  // OpenMesh

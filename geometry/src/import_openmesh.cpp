@@ -3,8 +3,9 @@
 // importer drops faces with repeated vertices and re-adds non-manifold faces
 // with duplicated vertices, which would break the file's face order; the
 // importer below records vertices and faces exactly as the reader announces them.
-// OpenMesh's ASCII readers turn a non-number ("nan", a typo) into a silent stream
-// failure and read garbage after it, so the text is checked first.
+// OpenMesh's readers trust their input (a non-number, a damaged header or a
+// negative list length make them read garbage, crash or allocate without bound),
+// so the file's structure is checked first (import_ply_off_check.cpp).
 #include "import_internal.hpp"
 
 #include <OpenMesh/Core/IO/MeshIO.hh>
@@ -115,128 +116,12 @@ class Recorder : public IO::BaseImporter {
   RawMesh& raw_;
 };
 
-struct Declared {
-  std::uint64_t vertices = 0, faces = 0;
-  bool binary = false;  // OFF: the rare "OFF BINARY" and 4D/nD variants, read from the file as is
-};
-
-std::uint64_t parse_count(std::string_view t, const std::string& name, const std::string& where) {
-  std::uint64_t n = 0;
-  auto [ptr, ec] = std::from_chars(t.data(), t.data() + t.size(), n);
-  if (ec != std::errc() || ptr != t.data() + t.size() || n > 0x7fffffff)
-    throw InputError(name, where, "'" + std::string(t) + "' is not a valid element count");
-  return n;
-}
-
-// Walks the lines of `text` from `pos`; calls f(line_number, tokens) for lines with tokens
-// (comments after '#' removed when `comments`).
-template <class F>
-void for_lines(const std::string& text, size_t pos, int line_no, bool comments, F&& f) {
-  LineCursor lines(text, pos, line_no);
-  for (std::string_view line; lines.next(line);) {
-    if (comments) line = line.substr(0, line.find('#'));
-    auto tok = split_ws(line);
-    if (!tok.empty() && !f(lines.line_no(), tok)) return;
-  }
-}
-
-// Every token of an ASCII body must be a finite number; the first `nv` lines are vertices.
-// Returns the number of tokens.
-std::uint64_t check_ascii_body(const std::string& text, size_t pos, int line_no, bool comments,
-                               std::uint64_t nv, const std::string& name) {
-  std::uint64_t tokens = 0, body_line = 0;
-  for_lines(text, pos, line_no, comments, [&](int line, const std::vector<std::string_view>& tok) {
-    std::string where = "line " + std::to_string(line);
-    if (body_line < nv) where += " (vertex " + std::to_string(body_line) + ")";
-    for (auto t : tok) {
-      double v = 0;
-      if (!parse_double(t, v)) throw InputError(name, where, "'" + std::string(t.substr(0, 40)) + "' is not a number");
-      if (!std::isfinite(v)) throw InputError(name, where, "coordinate is not finite (nan or inf)", "fix or re-export the mesh");
-    }
-    tokens += tok.size();
-    ++body_line;
-    return true;
-  });
-  return tokens;
-}
-
-Declared check_off(const std::string& text, const std::string& name) {
-  Declared d;
-  std::vector<std::string_view> head;
-  LineCursor lines(text);
-  bool binary = false;
-  // Header: "[ST][C][N][4][n]OFF [BINARY]", then the three counts (possibly on the same line).
-  for (std::string_view line; head.size() < 4 && lines.next(line);) {
-    const int line_no = lines.line_no();
-    for (auto t : split_ws(line.substr(0, line.find('#')))) {
-      if (head.empty() && (t.size() < 3 || t.substr(t.size() - 3) != "OFF"))
-        throw InputError(name, "line " + std::to_string(line_no), "an OFF file starts with 'OFF'");
-      if (t == "BINARY") binary = true;
-      else head.push_back(t);
-    }
-  }
-  if (head.size() < 4) throw InputError(name, "header", "missing the vertex, face and edge counts");
-  d.vertices = parse_count(head[1], name, "header");
-  d.faces = parse_count(head[2], name, "header");
-  if (head[0].find("4") != std::string_view::npos || head[0].find("n") != std::string_view::npos || binary) {
-    // Rare variants (4D, n-dimensional, binary): only bound the counts by the size.
-    d.binary = true;
-    if (d.vertices * 12 + d.faces * 4 > text.size())
-      throw InputError(name, "header", "declares " + std::to_string(d.vertices) + " vertices and " +
-                                           std::to_string(d.faces) + " faces, more than the file can hold");
-    return d;
-  }
-  const std::uint64_t tokens = check_ascii_body(text, lines.pos(), lines.line_no(), true, d.vertices, name);
-  if (tokens < 3 * d.vertices + d.faces)
-    throw InputError(name, "", "declares " + std::to_string(d.vertices) + " vertices and " + std::to_string(d.faces) +
-                                   " faces but holds only " + std::to_string(tokens) + " numbers (truncated?)");
-  return d;
-}
-
-Declared check_ply(const std::string& text, const std::string& name) {
-  Declared d;
-  struct Element {
-    std::string name;
-    std::uint64_t count = 0;
-    std::uint64_t properties = 0;
-  };
-  std::vector<Element> elements;
-  std::string format;
-  LineCursor lines(text);
-  bool ended = false;
-  for (std::string_view line; !ended && lines.next(line);) {
-    const int line_no = lines.line_no();
-    const auto tok = split_ws(line);
-    const std::string where = "line " + std::to_string(line_no);
-    if (line_no == 1 && (tok.size() != 1 || tok[0] != "ply")) throw InputError(name, where, "a PLY file starts with 'ply'");
-    if (tok.empty()) continue;
-    if (tok[0] == "format" && tok.size() >= 2) format = tok[1];
-    else if (tok[0] == "element" && tok.size() == 3) elements.push_back({std::string(tok[1]), parse_count(tok[2], name, where), 0});
-    else if (tok[0] == "property" && !elements.empty()) ++elements.back().properties;
-    else if (tok[0] == "end_header") ended = true;
-  }
-  if (!ended) throw InputError(name, "header", "no 'end_header' line");
-  std::uint64_t needed = 0;
-  for (const auto& e : elements) {
-    needed += e.count * std::max<std::uint64_t>(e.properties, 1);
-    if (e.name == "vertex") d.vertices = e.count;
-    if (e.name == "face") d.faces = e.count;
-  }
-  const bool vertex_first = !elements.empty() && elements.front().name == "vertex";
-  std::uint64_t have = text.size() - lines.pos();  // binary: at least one byte per value
-  if (format == "ascii") have = check_ascii_body(text, lines.pos(), lines.line_no(), false, vertex_first ? d.vertices : 0, name);
-  if (needed > have)
-    throw InputError(name, "header", "declares " + std::to_string(needed) + " values (" + std::to_string(d.vertices) +
-                                         " vertices, " + std::to_string(d.faces) + " faces) but the file holds fewer (truncated?)");
-  return d;
-}
-
 }  // namespace
 
 RawMesh read_ply_off(const std::filesystem::path& path, const std::string& ext) {
   const std::string name = display(path);
   const std::string text = read_file_bytes(path);
-  const Declared declared = ext == ".off" ? check_off(text, name) : check_ply(text, name);
+  const PlyOffCounts declared = ext == ".off" ? check_off(text, name) : check_ply(text, name);
   RawMesh raw;
   Recorder recorder(raw);
   IO::Options opt;
@@ -244,7 +129,7 @@ RawMesh read_ply_off(const std::filesystem::path& path, const std::string& ext) 
   {
     OmQuiet quiet;
     try {
-      if (ext == ".off" && !declared.binary) {
+      if (ext == ".off") {
         // OpenMesh's OFF reader knows no '#' comments (it reads garbage): feed it the text without them.
         std::string clean = text;
         for (size_t i = clean.find('#'); i != std::string::npos; i = clean.find('#', i))

@@ -522,6 +522,62 @@ TEST_F(Import, MeshesWithoutFaces) {
   expect_input_error([&] { load_mesh(claim); }, claim, "truncated");
 }
 
+// Damaged PLY/OFF headers and list lengths crash OpenMesh's readers or make them
+// allocate without bound; they are refused before OpenMesh sees the file.
+TEST_F(Import, DamagedPlyAndOffStructureIsRefusedBeforeOpenMesh) {
+  const std::string xyz = "property float x\nproperty float y\nproperty float z\n";
+  const std::string faces = "element face 1\nproperty list uchar int vertex_indices\n";
+  const std::string body = "0 0 0\n1 0 0\n0 1 0\n";
+  struct Case {
+    const char* name;
+    std::string contents, expected;
+  };
+  const Case cases[] = {
+      {"prop_first.ply", "ply\nformat ascii 1.0\nproperty float x\nelement vertex 3\n" + xyz + faces + "end_header\n" + body + "3 0 1 2\n",
+       "line 3: a property before any element"},
+      {"no_count.ply", "ply\nformat ascii 1.0\nelement vertex\n" + xyz + faces + "end_header\n" + body + "3 0 1 2\n",
+       "line 3: damaged element line"},
+      {"face_no_count.ply", "ply\nformat ascii 1.0\nelement vertex 3\n" + xyz + "element face\nproperty list uchar int vertex_indices\nend_header\n" + body,
+       "line 7: damaged element line"},
+      {"face_negative.ply", "ply\nformat ascii 1.0\nelement vertex 3\n" + xyz + "element face -1\nproperty list uchar int vertex_indices\nend_header\n" + body,
+       "'-1' is not a valid element count"},
+      {"list_negative.ply", "ply\nformat ascii 1.0\nelement vertex 3\n" + xyz + faces + "end_header\n" + body + "-3 0 1 2\n",
+       "line 13 (face 0): the length of list 'vertex_indices' is '-3'"},
+      {"list_long.ply", "ply\nformat ascii 1.0\nelement vertex 3\n" + xyz + faces + "end_header\n" + body + "200 0 1 2\n",
+       "ends in number 0 (truncated?)"},
+      {"bad_type.ply", "ply\nformat ascii 1.0\nelement vertex 3\nproperty float3 x\n", "line 4: damaged property line"},
+      {"float_count.ply", "ply\nformat ascii 1.0\nelement vertex 3\n" + xyz + "element face 1\nproperty list float int vertex_indices\nend_header\n",
+       "line 8: damaged property line"},
+      {"twice.ply", "ply\nformat ascii 1.0\nelement vertex 3\n" + xyz + "element vertex 3\n" + xyz + "end_header\n",
+       "line 7: element 'vertex' is declared twice"},
+      {"empty_element.ply", "ply\nformat binary_little_endian 1.0\nelement vertex 2000000000\nend_header\n", "element 'vertex' has no properties"},
+      {"no_xyz.ply", "ply\nformat ascii 1.0\nelement vertex 1\nproperty float u\nend_header\n0\n", "lacks the scalar properties x, y and z"},
+      {"no_format.ply", "ply\nelement vertex 3\n" + xyz + "end_header\n" + body, "no 'format' line"},
+      {"junk_header.ply", "ply\nformat ascii 1.0\nelemnt vertex 3\nend_header\n", "line 3: unknown header line 'elemnt'"},
+      {"face_minus3.off", "OFF\n3 1 0\n" + body + "-3 0 1 2\n", "line 6 (face 0): a face line is 'k i1 ... ik'"},
+      {"face_long.off", "OFF\n3 1 0\n" + body + "4 0 1 2\n", "line 6 (face 0)"},
+      {"count_minus3.off", "OFF\n3 -3 0\n" + body, "'-3' is not a valid element count"},
+      {"short_vertex.off", "OFF\n3 1 0\n0 0\n1 0 0\n0 1 0\n3 0 1 2\n", "line 3 (vertex 0): a vertex line needs x y z"},
+      {"binary.off", "OFF BINARY\n3 1 0\n", "variant of OFF is not supported"},
+  };
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.name);
+    const fs::path p = text(c.name, c.contents);
+    expect_input_error([&] { load_mesh(p); }, p, c.expected);
+  }
+  // Binary: a negative list length in a signed count type, and one longer than the file.
+  std::string bin = "ply\nformat binary_little_endian 1.0\nelement vertex 3\n" + xyz +
+                    "element face 1\nproperty list int int vertex_indices\nend_header\n";
+  const float v[9] = {0, 0, 0, 1, 0, 0, 0, 1, 0};
+  bin.append(reinterpret_cast<const char*>(v), sizeof v);
+  for (const int n : {-3, 1000000}) {
+    SCOPED_TRACE(n);
+    const int f[4] = {n, 0, 1, 2};
+    const fs::path p = bytes("list.ply", bin + std::string(reinterpret_cast<const char*>(f), sizeof f));
+    expect_input_error([&] { load_mesh(p); }, p, n < 0 ? "face 0: the length of list 'vertex_indices' is -3" : "(truncated?)");
+  }
+}
+
 TEST_F(Import, ThreeMfWithoutMeshAndBroken3mf) {
   const auto junk = text("junk.3mf", "this is not a zip package");
   expect_input_error([&] { load_mesh(junk); }, junk, "lib3mf could not read it");

@@ -28,6 +28,10 @@ struct CameraModel {
   std::string lensmodel;
   /// fx, fy, cx, cy (pixels), then the distortion parameters in mrcal's order.
   std::vector<double> intrinsics;
+  /// Larger imagers are refused when a model is read (no camera has one; the
+  /// bound keeps a damaged imagersize from allocating gigabytes per pixel).
+  static constexpr int kMaxImagerSide = 65536;
+  static constexpr std::int64_t kMaxImagerPixels = 400'000'000;
   int width = 0;   ///< imager width, pixels
   int height = 0;  ///< imager height, pixels
   /// mrcal's rt_cam_ref with the part frame as the reference frame; t in mm.

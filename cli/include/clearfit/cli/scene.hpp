@@ -86,6 +86,8 @@ class SceneReader {
 
   [[noreturn]] void fail(const YAML::Node& node, const std::string& key, const std::string& problem) const;
   void only_keys(const YAML::Node& map, const std::string& prefix, const std::set<std::string>& allowed) const;
+  /// Throws (line, key) at the second of two equal keys anywhere under `node`.
+  void no_duplicate_keys(const YAML::Node& node, const std::string& prefix) const;
   template <class T>
   std::optional<T> get(const YAML::Node& map, const std::string& key, const std::string& full, const char* what) const {
     const YAML::Node n = map[key];
