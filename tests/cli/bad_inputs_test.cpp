@@ -171,7 +171,7 @@ std::vector<Case> catalogue(const std::string& camera_text) {
       {"output", "scene output under a file", {{"f", "x"}, {"s.yaml", kScene + "outputs: {map: f/m.npy}\n"}}, {"map", "--scene", "s.yaml"},
        {"f/m.npy", "is a file"}},
       {"output", "scene output folder left by a failing run", {{"s.yaml", "mesh: slab.obj\ncamera: cam.cameramodel\ncontact: {group: nope}\noutputs: {map: new/deep/m.npy}\n"}},
-       {"map", "--scene", "s.yaml"}, {"s.yaml", "nope"}},
+       {"map", "--scene", "s.yaml"}, {"slab.obj", "group 'nope'"}},
       // ---- simulate
       {"scene", "simulate without a simulation section", {{"s.yaml", kScene}}, {"simulate", "s.yaml", "--out", "sim2"}, {"s.yaml", "simulation"}},
       {"output", "simulate --out under a file", {{"f", "x"}, {"s.yaml", sim_scene}}, {"simulate", "s.yaml", "--out", "f/sim"}, {"f", "is a file"}},
