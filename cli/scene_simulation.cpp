@@ -72,8 +72,12 @@ class SimulationParser {
       num(f, "hz", "simulation.flicker.hz", o.camera.flicker_hz, 1, 10000);
     }
     if (const YAML::Node m = s["motion"]) {
-      r_.only_keys(m, "simulation.motion", {"step_px"});
+      r_.only_keys(m, "simulation.motion", {"step_px", "drift_px_per_s", "tremor_px", "tremor_hz", "rotation_deg"});
       num(m, "step_px", "simulation.motion.step_px", o.camera.motion_step_px, 0, 5);
+      num(m, "drift_px_per_s", "simulation.motion.drift_px_per_s", o.camera.motion_drift_px_per_s, 0, 100);
+      num(m, "tremor_px", "simulation.motion.tremor_px", o.camera.motion_tremor_px, 0, 20);
+      num(m, "tremor_hz", "simulation.motion.tremor_hz", o.camera.motion_tremor_hz, 0.1, 100);
+      num(m, "rotation_deg", "simulation.motion.rotation_deg", o.camera.motion_rotation_deg, -10, 10);
     }
     if (const YAML::Node p = s["pressure"]) parse_pressure(p, o);
     if (const YAML::Node p = s["presses"]) parse_presses(p, o);

@@ -44,6 +44,8 @@ PhaseReport phase_report(const CaptureSums& sums, const PhaseAverage& avg, bool 
   r.fps = sums.info.fps;
   r.motion_px_max = avg.motion_px_max;
   r.jitter_px_rms = avg.jitter_px_rms;
+  r.rotation_deg_max = avg.rotation_deg_max;
+  r.rotation_scale_px_max = avg.rotation_scale_px_max;
   r.motion_compensated = compensated;
   r.saturated_fraction = avg.saturated_fraction;
   r.mean_code = avg.mean_code;
@@ -155,6 +157,7 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
   ro.roi = seen_roi(map, static_cast<int>(std::ceil(o.max_motion_px)) + 2);
   ro.chunk_frames = o.chunk_frames;
   ro.register_motion = o.compensate_motion;
+  ro.seen = seen_pixels(map, ro.roi);
   ro.colour = o.glare.enabled;
   ro.max_motion_px = o.max_motion_px;
   ro.expected_width = scene.camera->width;
@@ -220,6 +223,10 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
     if (p->motion_px_max > 0.5)
       a.warnings.push_back("motion during the " + role + " capture: up to " + fmt(p->motion_px_max) + " px, compensated" +
                            (p->jitter_px_rms > 0.2 ? " (jitter of " + fmt(p->jitter_px_rms, 2) + " px rms left as blur)" : ""));
+    if (p->rotation_scale_px_max > 0.5)
+      a.warnings.push_back("the image turned or scaled during the " + role + " capture (up to " + fmt(p->rotation_deg_max, 2) +
+                           "°): frames are aligned at the centre of the view, so up to " + fmt(p->rotation_scale_px_max, 2) +
+                           " px of it is left as blur at its edges");
     if (p->saturated_fraction > 0.001)
       a.warnings.push_back(fmt(100 * p->saturated_fraction, 2) + " % of the pixels that see the skin are saturated in the " + role +
                            " capture: their blanching is underestimated");

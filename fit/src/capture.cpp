@@ -9,9 +9,9 @@
 #include <deque>
 #include <exception>
 #include <mutex>
+#include <numbers>
 #include <numeric>
 #include <opencv2/imgproc.hpp>
-#include <opencv2/video/tracking.hpp>
 #include <limits>
 #include <optional>
 #include <sstream>
@@ -104,25 +104,12 @@ cv::Mat deep_frame(cv::Mat& frame) {
   return deep;
 }
 
-/// Linear green of a patch of a BGR8 frame, as CV_32F.
-cv::Mat linear_green_patch(const cv::Mat& bgr, const cv::Rect& rect) {
-  const float* lut = srgb::to_linear_table8();
-  cv::Mat out(rect.size(), CV_32F);
-  for (int y = 0; y < rect.height; ++y) {
-    const auto* src = bgr.ptr<cv::Vec3b>(rect.y + y) + rect.x;
-    auto* dst = out.ptr<float>(y);
-    for (int x = 0; x < rect.width; ++x) dst[x] = lut[src[x][1]];
-  }
-  return out;
-}
-
 }  // namespace
 
 CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadOptions& options,
                          MotionReference& reference) {
   if (options.chunk_frames < 1) throw std::invalid_argument("read_capture: chunk_frames must be >= 1");
-  if (options.patch_size < 16 || (options.patch_size & (options.patch_size - 1)) != 0)
-    throw std::invalid_argument("read_capture: patch_size must be a power of two >= 16");
+  options.registration.validate();
   FrameReader reader(source);
   CaptureSums sums;
   sums.info = reader.info();
@@ -139,18 +126,16 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
   sums.chunk_frames = options.chunk_frames;
   const cv::Rect roi = sums.roi;
 
-  // Registration patch: centred on the roi, clipped to the image.
-  const int ps = std::min({options.patch_size, info.width, info.height});
-  int patch = 1;
-  while (patch * 2 <= ps) patch *= 2;
-  cv::Rect patch_rect(roi.x + roi.width / 2 - patch / 2, roi.y + roi.height / 2 - patch / 2, patch, patch);
-  patch_rect.x = std::clamp(patch_rect.x, 0, info.width - patch);
-  patch_rect.y = std::clamp(patch_rect.y, 0, info.height - patch);
-  const Vec2 previous_shift = Vec2::Zero();
-  if (!reference.empty() && (reference.origin != patch_rect.tl() || reference.patch.cols * 2 != patch_rect.width ||
-                             reference.patch.rows * 2 != patch_rect.height))
-    throw std::invalid_argument("read_capture: the motion reference was taken with another roi");
-
+  // Registration: a grid of patches over the roi, against the first baseline frame (registration.hpp).
+  if (options.register_motion) {
+    if (!reference.registration)
+      reference.registration = std::make_shared<MotionRegistration>(cv::Size(info.width, info.height), roi, options.registration,
+                                                                   options.seen.size() == roi.size() ? options.seen : cv::Mat());
+    else if (reference.registration->roi() != roi || reference.registration->image() != cv::Size(info.width, info.height))
+      throw std::invalid_argument("read_capture: the motion reference was taken with another roi or image size");
+  }
+  MotionRegistration* registration_of = options.register_motion ? reference.registration.get() : nullptr;
+  const Vec2 roi_centre(roi.x + 0.5 * roi.width, roi.y + 0.5 * roi.height);
   const float* lut = srgb::to_linear_table8();
   FrameQueue queue(reader);
   cv::Mat frame;
@@ -165,32 +150,25 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
     sums.read_ms += ms_since(t_wait);
     const auto t_work = Clock::now();
     const cv::Mat deep = deep_frame(frame);  // 16-bit frames: the green sums read every bit, the rest 8 bits
-    // Motion: content displacement of this frame against the reference, measured (ECC on a
-    // task of its own) while the frame is accumulated at the previous frame's integer shift;
+    // Motion: content displacement of this frame against the reference, measured (on a task
+    // of its own) while the frame is accumulated at the previous frame's integer shift;
     // in the rare frame whose integer shift changes, the frame is moved afterwards.
     const cv::Point d_prev = sums.applied_shift.empty() ? cv::Point(0, 0) : sums.applied_shift.back();
-    Vec2 shift = Vec2::Zero();
+    Similarity motion;
+    motion.centre = roi_centre;
+    int patches_used = 0;
     tbb::task_group registration;
-    if (options.register_motion) {
-      // Half resolution (pyrDown): a 256 px patch registers to ~0.02 px in about 1 ms.
-      cv::Mat g;
-      cv::pyrDown(linear_green_patch(frame, patch_rect), g);
-      if (reference.empty()) {
-        reference.patch = g;
-        reference.origin = patch_rect.tl();
+    if (registration_of) {
+      if (!registration_of->has_reference()) {
+        registration_of->set_reference(frame);
+        patches_used = static_cast<int>(registration_of->patches().size());
       } else {
-        // Enhanced correlation (ECC), translation only, started from the previous frame's
-        // displacement: intensity-based and sub-pixel; robust to the press's local change.
-        const Vec2 start = sums.shift_px.empty() ? previous_shift : sums.shift_px.back();
-        registration.run([&shift, &reference, g, start] {
-          cv::Mat warp = (cv::Mat_<float>(2, 3) << 1, 0, static_cast<float>(start.x() / 2), 0, 1, static_cast<float>(start.y() / 2));
-          try {
-            cv::findTransformECC(reference.patch, g, warp, cv::MOTION_TRANSLATION,
-                                 cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, 10, 5e-3), cv::noArray(), 1);
-            shift = 2.0 * Vec2(warp.at<float>(0, 2), warp.at<float>(1, 2));
-          } catch (const cv::Exception&) {
-            shift = Vec2::Constant(std::numeric_limits<double>::quiet_NaN());
-          }
+        // Started from the previous frame's motion.
+        const Similarity start = sums.motion.empty() ? motion : sums.motion.back();
+        registration.run([&motion, &patches_used, registration_of, &frame, start] {
+          const RegistrationResult r = registration_of->measure(frame, start);
+          motion = r.motion;
+          patches_used = r.patches_used;
         });
       }
     }
@@ -265,9 +243,11 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
     };
     accumulate(d_prev, 1.f, true);
     registration.wait();
-    if (!shift.allFinite() || shift.norm() > options.max_motion_px)
+    const Vec2 shift = motion.t;
+    const double moved = motion.t.allFinite() ? motion.max_displacement(roi) : std::numeric_limits<double>::quiet_NaN();
+    if (!std::isfinite(moved) || moved > options.max_motion_px)
       throw InputError(source.string(), name,
-                       "moved " + (shift.allFinite() ? fmt(shift.norm(), 1) + " px" : std::string("beyond recognition")) +
+                       "moved " + (std::isfinite(moved) ? fmt(moved, 1) + " px" : std::string("beyond recognition")) +
                            " against the first baseline frame, more than the " + fmt(options.max_motion_px, 1) +
                            " px clearfit compensates",
                        "hold the part and the skin still while filming (a fixture helps), or raise "
@@ -303,6 +283,8 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
     sums.saturated_fraction.push_back(static_cast<float>(stat_saturated / stat_pixels));
     sums.mean_code.push_back(static_cast<float>(stat_code / stat_pixels));
     sums.shift_px.push_back(shift);
+    sums.motion.push_back(motion);
+    sums.patches_used.push_back(patches_used);
     sums.applied_shift.push_back(d);
     sums.work_ms += ms_since(t_work);
     ++n;
@@ -378,7 +360,13 @@ PhaseAverage average_window(const CaptureSums& sums, FrameWindow window, int min
   const int f0 = avg.window.first, f1 = avg.window.first + avg.window.count;
   for (int f = f0; f < f1; ++f) {
     residual += sums.shift_px[f] - Vec2(sums.applied_shift[f].x, sums.applied_shift[f].y);
-    avg.motion_px_max = std::max(avg.motion_px_max, sums.shift_px[f].norm());
+    const Similarity& m = sums.motion[f];
+    avg.motion_px_max = std::max(avg.motion_px_max, m.max_displacement(sums.roi));
+    avg.rotation_deg_max = std::max(avg.rotation_deg_max, std::abs(m.angle_rad()) * 180 / std::numbers::pi);
+    avg.scale_change_max = std::max(avg.scale_change_max, std::abs(m.scale() - 1));
+    Similarity turn = m;
+    turn.t.setZero();
+    avg.rotation_scale_px_max = std::max(avg.rotation_scale_px_max, turn.max_displacement(sums.roi));
     sat += sums.saturated_fraction[f];
     code += sums.mean_code[f];
   }

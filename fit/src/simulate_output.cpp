@@ -67,7 +67,9 @@ json camera_json(const CameraSettings& c) {
           {"specular_peak", c.specular_peak}, {"specular_center", vec(c.specular_center)},
           {"specular_sigma", c.specular_sigma}, {"background", c.background},
           {"flicker_amplitude", c.flicker_amplitude}, {"flicker_hz", c.flicker_hz},
-          {"motion_step_px", c.motion_step_px}, {"supersample", c.supersample},
+          {"motion_step_px", c.motion_step_px}, {"motion_drift_px_per_s", c.motion_drift_px_per_s},
+          {"motion_tremor_px", c.motion_tremor_px}, {"motion_tremor_hz", c.motion_tremor_hz},
+          {"motion_rotation_deg", c.motion_rotation_deg}, {"supersample", c.supersample},
           {"texture_mm", c.texture_mm}};
 }
 }  // namespace
@@ -216,6 +218,8 @@ void write_truth(const std::filesystem::path& dir, const PressureFieldSpec& spec
                       {"first_frame", (tl.single_video ? cap.baseline_frames : 0) + cap.press_frames}, {"frames", cap.release_frames}});
   json shifts = json::array();
   for (const Vec2& s : cap.shift_px) shifts.push_back(vec(s));
+  json angles = json::array();
+  for (double a : cap.angle_rad) angles.push_back(a * 180 / std::numbers::pi);
   json in = json::object();
   for (const auto& [k, v] : inputs) in[k] = v;
   const json j = {
@@ -252,8 +256,12 @@ void write_truth(const std::filesystem::path& dir, const PressureFieldSpec& spec
                            "on through the worn one): h = 0 until press_time_s, then 1 − exp(−(t − press_time_s)/tau_on_s); after "
                            "release_time_s (when there are released frames) h(release_time_s)·exp(−(t − release_time_s)/tau_off_s)"}}},
       {"camera", camera_json(cam)},
-      {"motion", {{"step_px", cam.motion_step_px}, {"shift_px_per_frame", shifts},
-                  {"note", "image shift of the skin at each frame (baseline frames first), px"}}},
+      {"motion", {{"step_px", cam.motion_step_px}, {"drift_px_per_s", cam.motion_drift_px_per_s},
+                  {"tremor_px", cam.motion_tremor_px}, {"tremor_hz", cam.motion_tremor_hz},
+                  {"rotation_deg", cam.motion_rotation_deg}, {"shift_px_per_frame", shifts},
+                  {"rotation_deg_per_frame", angles}, {"centre_px", {0.5 * (size.width - 1), 0.5 * (size.height - 1)}},
+                  {"note", "per frame (baseline frames first): the skin at reference pixel q is seen at "
+                           "centre + R(rotation)·(q − centre) + shift, px and degrees"}}},
       {"timings_ms", {{"render", cap.render_ms}, {"write_wait", cap.write_ms}}}};
   write_npy_float32(dir / "truth_pressure.npy", {static_cast<std::size_t>(g.height), static_cast<std::size_t>(g.width)},
                     truth.pressure.value.data());

@@ -58,6 +58,10 @@ void CameraSettings::validate() const {
   check(flicker_amplitude >= 0 && flicker_amplitude < 1, "flicker_amplitude", flicker_amplitude, "must be in [0, 1)");
   check(flicker_hz > 0 && std::isfinite(flicker_hz), "flicker_hz", flicker_hz, "must be > 0");
   check(motion_step_px >= 0 && motion_step_px <= 5, "motion_step_px", motion_step_px, "must be in [0, 5]");
+  check(motion_drift_px_per_s >= 0 && motion_drift_px_per_s <= 100, "motion_drift_px_per_s", motion_drift_px_per_s, "must be in [0, 100]");
+  check(motion_tremor_px >= 0 && motion_tremor_px <= 20, "motion_tremor_px", motion_tremor_px, "must be in [0, 20]");
+  check(motion_tremor_hz > 0 && motion_tremor_hz <= 100, "motion_tremor_hz", motion_tremor_hz, "must be in (0, 100]");
+  check(std::abs(motion_rotation_deg) <= 10, "motion_rotation_deg", motion_rotation_deg, "must be in [-10, 10]");
   check(supersample >= 1 && supersample <= 4, "supersample", supersample, "must be 1..4");
   check(texture_mm > 0 && std::isfinite(texture_mm), "texture_mm", texture_mm, "must be > 0");
 }
@@ -132,7 +136,7 @@ CaptureRenderer::CaptureRenderer(const RefractionMap& map, const ChartField& dri
       }
   pixels_.resize(static_cast<std::size_t>(width_) * height_);
   tbb::parallel_for(0, height_, [&](int y) {
-    for (int x = 0; x < width_; ++x) pixels_[static_cast<std::size_t>(y) * width_ + x] = static_pixel(x, y, Vec2::Zero());
+    for (int x = 0; x < width_; ++x) pixels_[static_cast<std::size_t>(y) * width_ + x] = static_pixel(x, y, FrameMotion{});
   });
   for (const Pixel& p : pixels_) skin_pixels_ += p.q[0] > 0;
   setup_ms_ = ms_since(t0);
@@ -183,9 +187,13 @@ void CaptureRenderer::moments(double px, double py, float q[4]) const {
   for (int k = 0; k < 4; ++k) q[k] = static_cast<float>(acc[k] / (n * n));
 }
 
-CaptureRenderer::Pixel CaptureRenderer::static_pixel(int x, int y, const Vec2& shift, bool with_skin) const {
+CaptureRenderer::Pixel CaptureRenderer::static_pixel(int x, int y, const FrameMotion& motion, bool with_skin) const {
   Pixel p{};
-  const double px = x - shift.x(), py = y - shift.y();  // the skin moves by +shift in the image
+  // The reference pixel seen here: q = c + R(−angle)·(p − c − shift).
+  const double cx0 = 0.5 * (width_ - 1), cy0 = 0.5 * (height_ - 1);
+  const double ux = x - cx0 - motion.shift.x(), uy = y - cy0 - motion.shift.y();
+  const double ca = std::cos(motion.angle_rad), sa = std::sin(motion.angle_rad);
+  const double px = cx0 + ca * ux + sa * uy, py = cy0 - sa * ux + ca * uy;
   if (with_skin) moments(px, py, p.q);
   // Skin fraction of the samples (transmittance aside), for the background share.
   const int n = cam_.supersample;
@@ -227,7 +235,8 @@ double CaptureRenderer::linear_green(int x, int y, double t_s, double h) const {
   return p.gain * skin_.tone.reflectance[1] * std::exp(-k * skin_.pulse_amplitude * g) * poly + p.additive;
 }
 
-cv::Mat CaptureRenderer::render(double t_s, double h, const Vec2& shift, std::uint64_t frame, const FrameLight* light) const {
+cv::Mat CaptureRenderer::render(double t_s, double h, const FrameMotion& motion, std::uint64_t frame, const FrameLight* light) const {
+  const Vec2& shift = motion.shift;
   cv::Mat out(height_, width_, CV_8UC3);
   const double g = pulse_waveform(t_s, skin_.pulse_hz);
   const double s = h * (1 + skin_.pulse_amplitude * g);
@@ -241,7 +250,9 @@ cv::Mat CaptureRenderer::render(double t_s, double h, const Vec2& shift, std::ui
     e[c] = static_cast<float>(gain[c] * skin_.tone.reflectance[c] * std::exp(-k * skin_.pulse_amplitude * g));
     c1[c] = static_cast<float>(ks), c2[c] = static_cast<float>(ks * ks / 2), c3[c] = static_cast<float>(ks * ks * ks / 6);
   }
-  const bool moved = shift.squaredNorm() > 0;
+  const bool moved = motion.moved();
+  // Rows and columns a turned pixel can reach beyond its shift.
+  const double turn = std::abs(std::sin(motion.angle_rad)) * 0.5 * std::max(width_, height_);
   const std::uint64_t fseed = splitmix(seed_ ^ splitmix(frame + 1));
   tbb::parallel_for(tbb::blocked_range<int>(0, height_, 8), [&](const tbb::blocked_range<int>& rows) {
     std::vector<Pixel> moved_row(moved ? width_ : 0);
@@ -249,11 +260,11 @@ cv::Mat CaptureRenderer::render(double t_s, double h, const Vec2& shift, std::ui
       if (moved) {
         // Only pixels near the map's valid pixels of the rows the samples read can see skin.
         int lo = width_, hi = -1;
-        const int yc = static_cast<int>(std::floor(y - shift.y()));
-        for (int yy = std::max(0, yc - 1); yy <= std::min(height_ - 1, yc + 2); ++yy)
+        const int yc = static_cast<int>(std::floor(y - shift.y())), reach = static_cast<int>(std::ceil(turn));
+        for (int yy = std::max(0, yc - 1 - reach); yy <= std::min(height_ - 1, yc + 2 + reach); ++yy)
           if (row_span_[yy].first <= row_span_[yy].second) lo = std::min(lo, row_span_[yy].first), hi = std::max(hi, row_span_[yy].second);
-        const int pad = static_cast<int>(std::ceil(std::abs(shift.x()))) + 2;
-        for (int x = 0; x < width_; ++x) moved_row[x] = static_pixel(x, y, shift, x >= lo - pad && x <= hi + pad);
+        const int pad = static_cast<int>(std::ceil(std::abs(shift.x()) + turn)) + 2;
+        for (int x = 0; x < width_; ++x) moved_row[x] = static_pixel(x, y, motion, x >= lo - pad && x <= hi + pad);
       }
       const Pixel* row = moved ? moved_row.data() : &pixels_[static_cast<std::size_t>(y) * width_];
       std::uint8_t* o = out.ptr<std::uint8_t>(y);
@@ -471,10 +482,20 @@ CaptureSummary render_captures(const CaptureRenderer& r, const SkinParameters& s
   sum.press_start_frame = tl.single_video ? sum.baseline_frames : 0;
   std::mt19937_64 rng(splitmix(seed ^ 0x6d6f74696f6eULL));
   std::normal_distribution<double> step(0, cam.motion_step_px);
-  Vec2 shift = Vec2::Zero();
+  // Drift and tremor directions and the tremor's phase, from the seed (drawn after the walk's steps).
+  std::mt19937_64 dir_rng(splitmix(seed ^ 0x647269667400ULL));
+  std::uniform_real_distribution<double> turn(0, kTwoPi);
+  const double drift_dir = turn(dir_rng), tremor_dir = turn(dir_rng), tremor_phase = turn(dir_rng);
+  const Vec2 drift = cam.motion_drift_px_per_s * Vec2(std::cos(drift_dir), std::sin(drift_dir));
+  const Vec2 tremor = cam.motion_tremor_px * Vec2(std::cos(tremor_dir), std::sin(tremor_dir));
+  Vec2 walk = Vec2::Zero();
   for (int k = 0; k < total; ++k) {
-    if (k > 0 && cam.motion_step_px > 0) shift += Vec2(step(rng), step(rng));
-    sum.shift_px.push_back(shift);
+    if (k > 0 && cam.motion_step_px > 0) walk += Vec2(step(rng), step(rng));
+    const double t = k / tl.fps;
+    // Tremor measured from its value at the first frame, so the first frame is the reference.
+    const double shake = std::sin(kTwoPi * cam.motion_tremor_hz * t + tremor_phase) - std::sin(tremor_phase);
+    sum.shift_px.push_back(walk + drift * t + tremor * shake);
+    sum.angle_rad.push_back(total > 1 ? cam.motion_rotation_deg * std::numbers::pi / 180 * k / (total - 1) : 0.0);
   }
   const cv::Size size(r.width(), r.height());
   std::vector<std::unique_ptr<CaptureWriter>> writers;
@@ -490,7 +511,7 @@ CaptureSummary render_captures(const CaptureRenderer& r, const SkinParameters& s
     const double h = press_lag(tl, skin, t);
     auto t0 = std::chrono::steady_clock::now();
     const std::optional<FrameLight> light = photometry ? std::optional(photometry->frame(k)) : std::nullopt;
-    cv::Mat frame = r.render(t, h, sum.shift_px[k], static_cast<std::uint64_t>(k), light ? &*light : nullptr);
+    cv::Mat frame = r.render(t, h, FrameMotion(sum.shift_px[k], sum.angle_rad[k]), static_cast<std::uint64_t>(k), light ? &*light : nullptr);
     sum.render_ms += ms_since(t0);
     t0 = std::chrono::steady_clock::now();
     if (pending.valid()) pending.get();

@@ -44,6 +44,8 @@ json phase_json(const PhaseReport& p) {
           {"fps", num(p.fps)},
           {"motion_px_max", num(p.motion_px_max)},
           {"jitter_px_rms", num(p.jitter_px_rms)},
+          {"rotation_deg_max", num(p.rotation_deg_max)},
+          {"rotation_scale_px_max", num(p.rotation_scale_px_max)},
           {"motion_compensated", p.motion_compensated},
           {"saturated_fraction", num(p.saturated_fraction)},
           {"mean_green_code", num(p.mean_code)},

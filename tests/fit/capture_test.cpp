@@ -82,7 +82,7 @@ TEST_F(CaptureTest, MeasuresSubpixelMotionAndUndoesItInTheAverage) {
   const auto folder = write_frames("moving", frames);
   CaptureReadOptions o;
   o.chunk_frames = 5;
-  o.patch_size = 64;
+  o.registration.patch_size = 64;
   MotionReference ref;
   const CaptureSums sums = read_capture(folder, o, ref);
   ASSERT_EQ(sums.info.frames, 20);
@@ -119,7 +119,7 @@ TEST_F(CaptureTest, RefusesLargeMotionAndWrongSizes) {
   std::mt19937 rng(3);
   const auto folder = write_frames("jump", {render(s, {0, 0}, false, rng, 0), render(s, {14, 0}, false, rng, 0)});
   CaptureReadOptions o;
-  o.patch_size = 64;
+  o.registration.patch_size = 64;
   o.max_motion_px = 5;
   MotionReference ref;
   try {
@@ -146,7 +146,7 @@ TEST_F(CaptureTest, SplitsOneVideoIntoBaselineAndPressAndMeasuresTheSignal) {
   for (int i = 0; i < 80; ++i) frames.push_back(render(s, {0.1 * std::sin(i * 0.7), 0}, i >= press_at, rng, 1.0));
   const auto folder = write_frames("both", frames);
   CaptureReadOptions o;
-  o.patch_size = 64;
+  o.registration.patch_size = 64;
   o.chunk_frames = 4;
   MotionReference ref;
   const CaptureSums sums = read_capture(folder, o, ref);
@@ -196,7 +196,7 @@ TEST_F(CaptureTest, NoPressIsAMissingPhase) {
   for (int i = 0; i < 40; ++i) frames.push_back(render(s, {0, 0}, false, rng, 1.0));
   const auto folder = write_frames("still", frames);
   CaptureReadOptions o;
-  o.patch_size = 64;
+  o.registration.patch_size = 64;
   MotionReference ref;
   const CaptureSums sums = read_capture(folder, o, ref);
   EXPECT_THROW(split_phases(sums, 10), InputError);

@@ -51,6 +51,7 @@ struct PhaseReport {
   FrameWindow window;
   double fps = 0;
   double motion_px_max = 0, jitter_px_rms = 0;
+  double rotation_deg_max = 0, rotation_scale_px_max = 0;  ///< measured, not undone (capture.hpp)
   bool motion_compensated = false;
   double saturated_fraction = 0, mean_code = 0;
   double gain_min = 1, gain_max = 1, gain_sigma = 0;  ///< per-chunk gains divided out of the window (photometric.hpp)

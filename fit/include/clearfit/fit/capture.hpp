@@ -3,19 +3,22 @@
 // once. Each frame's green channel is linearised from sRGB and added, inside
 // the region of the image that can see the skin, into partial sums of a few
 // frames ("chunks"), so averaging windows are chosen after the read without
-// decoding anything twice. Per frame the read also measures motion (enhanced
-// correlation, translation only, of a patch against a reference frame), the mean green of an 8×8
+// decoding anything twice. Per frame the read also measures motion (a
+// similarity from a grid of high-passed log-red patches against a reference
+// frame: registration.hpp), the mean green of an 8×8
 // grid of blocks (for splitting one video into its two phases; from every other row),
 // and saturated / dark pixels.
 //
 // Motion compensation: each frame is accumulated at an integer pixel shift
-// within 0.75 px of its measured motion (free: an index offset; kept from
+// within 0.75 px of its measured motion at the roi's centre (free: an index offset; kept from
 // frame to frame while it fits, so jitter around a position is not split), so drift of any size up
 // to the refusal limit is undone; the remaining sub-pixel shifts are averaged
 // per window and applied once, when the window's average is resampled onto the
 // chart (no per-frame resampling). The blur left by sub-pixel jitter inside a
-// window is reported.
+// window is reported, and so are rotation and scale, which are measured but not
+// undone: at the roi's corners they add their displacement (rotation_scale_px_max) as blur.
 #include <clearfit/fit/frame_reader.hpp>
+#include <clearfit/fit/registration.hpp>
 #include <clearfit/geometry/mesh.hpp>
 #include <opencv2/core.hpp>
 
@@ -32,8 +35,9 @@ struct CaptureReadOptions {
   int chunk_frames = 5;           ///< frames per stored partial sum
   bool register_motion = true;    ///< measure and compensate motion
   bool colour = true;             ///< also sum linear blue at half resolution (photometric.hpp), for the glare mask
-  int patch_size = 256;           ///< registration patch edge, px (a power of two), centred on the roi; registered at half resolution
-  double max_motion_px = 10.0;    ///< motion beyond this (against the reference) is refused
+  RegistrationOptions registration;  ///< how motion is measured (registration.hpp)
+  cv::Mat seen;                   ///< CV_8U, roi size: the pixels that see the skin, where registration patches go; empty: all
+  double max_motion_px = 10.0;    ///< motion beyond this anywhere in the roi (against the reference) is refused
   int expected_width = 0, expected_height = 0;  ///< the camera's imager; 0: not checked
   std::string role;               ///< "baseline", "worn" or "capture", for messages
   /// Bounded memory: keep the chunk sums of the last this many frames only (older ones are
@@ -46,12 +50,11 @@ struct CaptureReadOptions {
   std::function<void(const cv::Mat&, cv::Point)> on_frame;
 };
 
-/// The registration reference: a patch of the first baseline frame. Shared by
+/// The registration reference: the first baseline frame's patches. Shared by
 /// both captures so that both are aligned to the same frame.
 struct MotionReference {
-  cv::Mat patch;       ///< CV_32F linear green of the reference frame's patch, at half resolution
-  cv::Point origin;    ///< top-left of the patch in the image
-  bool empty() const { return patch.empty(); }
+  std::shared_ptr<MotionRegistration> registration;
+  bool empty() const { return !registration || !registration->has_reference(); }
 };
 
 /// One capture read once (see the file comment).
@@ -63,7 +66,9 @@ struct CaptureSums {
   std::vector<int> chunk_count;        ///< frames in each chunk
   int released_chunks = 0;             ///< chunks [0, released_chunks) had their sums released (keep_last_frames)
   std::vector<cv::Mat> chunk_blue;     ///< CV_32F (half_grid of the roi) sums of linear blue, aligned (empty without `colour`)
-  std::vector<Vec2> shift_px;          ///< per frame: content displacement against the reference, px
+  std::vector<Vec2> shift_px;          ///< per frame: content displacement against the reference at the roi's centre, px
+  std::vector<Similarity> motion;      ///< per frame: the whole measured motion (rotation and scale too; identity unregistered)
+  std::vector<int> patches_used;       ///< per frame: registration patches kept by the robust fit (0 unregistered)
   std::vector<cv::Point> applied_shift;  ///< per frame: integer shift undone while accumulating
   std::vector<std::array<float, 64>> blocks;  ///< per frame: mean linear green of 8×8 blocks of the roi
   std::vector<float> saturated_fraction;      ///< per frame: roi pixels whose green is 255
@@ -96,6 +101,9 @@ struct PhaseAverage {
   Vec2 residual_shift_px = Vec2::Zero();
   double motion_px_max = 0;      ///< largest measured displacement in the window, px
   double jitter_px_rms = 0;      ///< rms of the sub-pixel shifts around their mean (blur left), px
+  double rotation_deg_max = 0;   ///< largest measured rotation against the reference, degrees
+  double scale_change_max = 0;   ///< largest |scale − 1|
+  double rotation_scale_px_max = 0;  ///< largest displacement at the roi's corners from rotation and scale (not undone), px
   double saturated_fraction = 0; ///< mean over the window
   double mean_code = 0;          ///< mean 8-bit green code over the roi
   cv::Mat blue_half;             ///< CV_32F (half_grid of the roi): mean linear blue, gain-normalised; empty without colour

@@ -132,6 +132,10 @@ struct CameraSettings {
   double flicker_amplitude = 0;   ///< relative light modulation (0: none)
   double flicker_hz = 100;        ///< mains flicker: 100 (50 Hz mains) or 120 (60 Hz)
   double motion_step_px = 0;      ///< random walk of the image: step std per frame and axis, px
+  double motion_drift_px_per_s = 0;  ///< steady drift of the image, px/s (direction from the seed)
+  double motion_tremor_px = 0;    ///< tremor: sinusoidal shake of this amplitude, px (direction from the seed)
+  double motion_tremor_hz = 10;   ///< its frequency (physiological tremor: 8–12 Hz)
+  double motion_rotation_deg = 0; ///< roll of the image about its centre, reached steadily by the last frame, degrees
   int supersample = 2;            ///< n × n samples per pixel (1..4)
   double texture_mm = 0.02;       ///< texel of the fine skin texture the samples read
   /// Throws std::invalid_argument naming the field, its value and the rule.
@@ -163,6 +167,17 @@ struct Timeline {
 /// removal h(t_release)·exp(−(t − t_release)/τ_off). t in seconds.
 double press_lag(const Timeline& timeline, const SkinParameters& skin, double t_s);
 
+/// A frame's motion of the image: the skin seen at reference pixel q is seen at
+/// c + R(angle)·(q − c) + shift, c the image centre.
+struct FrameMotion {
+  Vec2 shift = Vec2::Zero();
+  double angle_rad = 0;
+  FrameMotion() = default;
+  template <class Derived>  // a shift (any Eigen 2-vector expression) is a motion
+  FrameMotion(const Eigen::MatrixBase<Derived>& s, double angle = 0) : shift(s), angle_rad(angle) {}  // NOLINT
+  bool moved() const { return shift.squaredNorm() > 0 || angle_rad != 0; }
+};
+
 /// Per-pixel static terms, then frames. Not copyable (large); thread-safe render().
 class CaptureRenderer {
  public:
@@ -174,10 +189,10 @@ class CaptureRenderer {
   CaptureRenderer& operator=(const CaptureRenderer&) = delete;
 
   /// One 8-bit BGR frame (CV_8UC3) at time t_s with press lag h in [0, 1]
-  /// (B = h·B_ss), image shift (px, the skin moves by +shift in the image) and
+  /// (B = h·B_ss), image motion (px and rad: the skin moves by +shift in the image, turned about the centre) and
   /// frame number (seeds the noise). `light` (optional): the camera's gains and
   /// the glare of this frame, replacing the flicker (simulate_photometric.hpp).
-  cv::Mat render(double t_s, double press_lag, const Vec2& shift_px, std::uint64_t frame,
+  cv::Mat render(double t_s, double press_lag, const FrameMotion& motion, std::uint64_t frame,
                  const FrameLight* light = nullptr) const;
   /// The noiseless linear green of a pixel (for tests), no shift, no flicker.
   double linear_green(int x, int y, double t_s, double press_lag) const;
@@ -195,7 +210,7 @@ class CaptureRenderer {
   };
   void moments(double x, double y, float q[4]) const;
   /// skin = false: a pixel known to see no skin (no sampling).
-  Pixel static_pixel(int x, int y, const Vec2& shift, bool skin = true) const;
+  Pixel static_pixel(int x, int y, const FrameMotion& motion, bool skin = true) const;
 
   const RefractionMap& map_;
   SkinParameters skin_;
@@ -254,6 +269,7 @@ struct CaptureSummary {
   int baseline_frames = 0, press_frames = 0, release_frames = 0;
   int press_start_frame = 0;            ///< first pressed frame (in the single video, or 0 in worn)
   std::vector<Vec2> shift_px;           ///< per frame (baseline then press)
+  std::vector<double> angle_rad;        ///< per frame: rotation about the image centre
   double render_ms = 0, write_ms = 0;
 };
 
