@@ -6,6 +6,7 @@
 
 #include <Eigen/Dense>
 #include <opencv2/imgproc.hpp>
+#include <opencv2/video/tracking.hpp>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -94,7 +95,8 @@ void RegistrationOptions::validate() const {
   };
   rule(grid >= 1 && grid <= 8, "grid", "must be 1..8");
   rule(patch_size >= 32, "patch_size", "must be >= 32 px");
-  rule(channel >= 0 && channel <= 2, "channel", "must be 0 (blue), 1 (green) or 2 (red)");
+  rule(std::isfinite(green_ratio) && green_ratio >= 0 && green_ratio < 1, "green_ratio", "must be in [0, 1)");
+  rule(std::isfinite(smooth_sigma_px) && smooth_sigma_px >= 0 && smooth_sigma_px <= 4, "smooth_sigma_px", "must be in [0, 4]");
   rule(std::isfinite(highpass_sigma_px) && highpass_sigma_px >= 0.5 && highpass_sigma_px <= 32, "highpass_sigma_px", "must be in [0.5, 32]");
   rule(downsample == 1 || downsample == 2, "downsample", "must be 1 or 2");
   rule(iterations >= 1 && iterations <= 200, "iterations", "must be 1..200");
@@ -118,7 +120,8 @@ MotionRegistration::MotionRegistration(cv::Size image, const cv::Rect& roi, cons
   if (roi_.area() == 0) throw std::invalid_argument("MotionRegistration: the roi lies outside the image");
   const int g = options_.grid;
   // Patch edge: even, at most the option, small enough for the grid to fit across the roi and the image.
-  int p = std::min({options_.patch_size, roi_.width / g, roi_.height / g, image.width, image.height});
+  // Patches overlap in a small roi rather than shrink below the option.
+  int p = std::min({options_.patch_size, roi_.width, roi_.height, image.width, image.height});
   p = std::max(16, p & ~1);
   if (p > image.width || p > image.height) throw std::invalid_argument("MotionRegistration: the image is smaller than 16 px");
   if (!seen.empty() && (seen.type() != CV_8U || seen.size() != roi.size()))
@@ -158,16 +161,17 @@ cv::Mat MotionRegistration::filtered(const cv::Mat& bgr, const cv::Rect& rect, c
   region.width = std::max(2, (std::min(region.width, bgr.cols - region.x)) & ~1);
   region.height = std::max(2, (std::min(region.height, bgr.rows - region.y)) & ~1);
   const auto& lut = log_table();
-  const int c = options_.channel;
+  const float rho = static_cast<float>(options_.green_ratio);
   cv::Mat full(region.size(), CV_32F);
   for (int y = 0; y < region.height; ++y) {
     const auto* src = bgr.ptr<cv::Vec3b>(region.y + y) + region.x;
     auto* dst = full.ptr<float>(y);
-    for (int x = 0; x < region.width; ++x) dst[x] = lut[src[x][c]];
+    for (int x = 0; x < region.width; ++x) dst[x] = lut[src[x][2]] - rho * lut[src[x][1]];
   }
   cv::Mat half, low;
   if (options_.downsample == 2) cv::pyrDown(full, half);
   else half = full;
+  if (options_.smooth_sigma_px > 0) cv::GaussianBlur(half, half, cv::Size(), options_.smooth_sigma_px, 0, cv::BORDER_REPLICATE);
   cv::GaussianBlur(half, low, cv::Size(), options_.highpass_sigma_px, 0, cv::BORDER_REPLICATE);
   origin_half = region.tl() / options_.downsample;
   return half - low;
@@ -188,7 +192,6 @@ void MotionRegistration::set_reference(const cv::Mat& bgr) {
     const cv::Rect in(r.x / ds - o.x, r.y / ds - o.y, r.width / ds, r.height / ds);
     if ((in & cv::Rect(0, 0, f.cols, f.rows)) != in) return;
     p.t = f(in).clone(), p.tx = fx(in).clone(), p.ty = fy(in).clone();
-    cv::createHanningWindow(p.window, p.t.size(), CV_32F);
     p.h[0] = p.tx.dot(p.tx), p.h[1] = p.tx.dot(p.ty), p.h[2] = p.ty.dot(p.ty);
     const double det = p.h[0] * p.h[2] - p.h[1] * p.h[1];
     p.usable = std::isfinite(det) && det > 1e-12 * (p.h[0] + p.h[2]) * (p.h[0] + p.h[2]);
@@ -221,35 +224,20 @@ RegistrationResult MotionRegistration::measure(const cv::Mat& bgr, const Similar
     }
     cv::Point o;
     const cv::Mat f = filtered(bgr, moved, o);
-    const double det = ref.h[0] * ref.h[2] - ref.h[1] * ref.h[1];
-    Vec2 p = d0 / ds;  // displacement at the registered resolution
-    cv::Mat warped, e;
-    // Coarse start: phase correlation against the patch where it is expected (a jump since the
-    // previous frame, or a capture that starts elsewhere, lies beyond Lucas–Kanade's reach).
-    {
-      const cv::Matx23d m(1, 0, r.x / ds + p.x() - o.x, 0, 1, r.y / ds + p.y() - o.y);
-      cv::warpAffine(f, warped, m, ref.t.size(), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_REPLICATE);
-      double response = 0;
-      const cv::Point2d jump = cv::phaseCorrelate(ref.t, warped, ref.window, &response);
-      if (response > 0.05 && std::hypot(jump.x, jump.y) < border_half_ / 2.0) p += Vec2(jump.x, jump.y);
+    // Enhanced correlation (ECC, translation) of the reference patch into the region read,
+    // started where the patch is expected: zero-mean and normalised, so what is left of a
+    // gain or an offset after the log and the high-pass does not matter.
+    const Vec2 p0 = d0 / ds;  // displacement at the registered resolution
+    cv::Mat warp = (cv::Mat_<float>(2, 3) << 1, 0, static_cast<float>(r.x / ds + p0.x() - o.x), 0, 1,
+                    static_cast<float>(r.y / ds + p0.y() - o.y));
+    try {
+      cv::findTransformECC(ref.t, f, warp, cv::MOTION_TRANSLATION,
+                           cv::TermCriteria(cv::TermCriteria::COUNT | cv::TermCriteria::EPS, options_.iterations, 1e-3), cv::noArray(), 1);
+    } catch (const cv::Exception&) {
+      return;  // did not converge: left out
     }
-    double last = kNaN;
-    for (int it = 0; it < options_.iterations; ++it) {
-      const cv::Matx23d m(1, 0, r.x / ds + p.x() - o.x, 0, 1, r.y / ds + p.y() - o.y);
-      cv::warpAffine(f, warped, m, ref.t.size(), cv::INTER_LINEAR | cv::WARP_INVERSE_MAP, cv::BORDER_REPLICATE);
-      cv::subtract(warped, ref.t, e);
-      const double bx = ref.tx.dot(e), by = ref.ty.dot(e);
-      const Vec2 dp((ref.h[2] * bx - ref.h[1] * by) / det, (ref.h[0] * by - ref.h[1] * bx) / det);
-      p -= dp;
-      last = dp.norm();
-      if (!p.allFinite() || (p - d0 / ds).norm() > border_half_) {
-        last = kNaN;
-        break;
-      }
-      if (last < 1e-4) break;
-    }
-    // Converged, or settled within the noise of the last steps.
-    if (last < 1e-2) res.patch_shift[k] = ds * p;
+    const Vec2 p(warp.at<float>(0, 2) - (r.x / ds - o.x), warp.at<float>(1, 2) - (r.y / ds - o.y));
+    if (p.allFinite() && (p - p0).norm() < border_half_) res.patch_shift[k] = ds * p;
   });
   std::vector<Vec2> q, d;
   std::vector<std::size_t> index;

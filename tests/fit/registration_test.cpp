@@ -71,7 +71,7 @@ Vec2 centre_of(const cv::Rect& r) { return Vec2(r.x + 0.5 * r.width, r.y + 0.5 *
 /// Largest error of a measured motion against a true one, over the roi's corners and centre.
 double motion_error(const Similarity& measured, const Vec2& shift, double angle, const Vec2& image_centre, const cv::Rect& roi) {
   double worst = 0;
-  for (const Vec2 q : {Vec2(roi.x, roi.y), Vec2(roi.br().x, roi.y), Vec2(roi.x, roi.br().y), Vec2(roi.br().x, roi.br().y), centre_of(roi)}) {
+  for (const Vec2& q : {Vec2(roi.x, roi.y), Vec2(roi.br().x, roi.y), Vec2(roi.x, roi.br().y), Vec2(roi.br().x, roi.br().y), centre_of(roi)}) {
     const Vec2 r = q - image_centre;
     const Vec2 truth = image_centre + Vec2(std::cos(angle) * r.x() - std::sin(angle) * r.y(), std::sin(angle) * r.x() + std::cos(angle) * r.y()) + shift - q;
     worst = std::max(worst, (measured.displacement(q) - truth).norm());
@@ -92,23 +92,33 @@ TEST(Registration, StrongBlanchingInEveryPatchIsNotMotion) {
       all.push_back(cases.back()[0]);
     }
     cases.push_back(all);
-    double worst = 0;
+    double worst = 0, worst_mean = 0;
     for (std::size_t k = 0; k < cases.size(); ++k) {
       const auto r = pressed(v, cases[k], skin, 100 + k);
       MotionRegistration reg(cv::Size(v.map.width, v.map.height), v.roi, {});
       reg.set_reference(r->render(0.0, 0.0, Vec2::Zero(), 0));
-      // Unpressed frames, then fully pressed ones: the skin holds still throughout.
-      for (int f = 1; f <= 4; ++f) {
-        const double h = f <= 1 ? 0.0 : 1.0;
-        const RegistrationResult m = reg.measure(r->render(f / 30.0, h, Vec2::Zero(), f), Similarity{});
+      // Fully pressed frames; the skin holds still. Each frame's reading carries the noise of
+      // its patches (35 px at half resolution here); their mean is what the averages see.
+      const int frames = 6;
+      std::vector<Vec2> mean(4, Vec2::Zero());
+      const cv::Rect& roi = v.roi;
+      const std::vector<Vec2> corners{Vec2(roi.x, roi.y), Vec2(roi.br().x, roi.y), Vec2(roi.x, roi.br().y), Vec2(roi.br().x, roi.br().y)};
+      for (int f = 1; f <= frames; ++f) {
+        const RegistrationResult m = reg.measure(r->render(1.0 + f / 30.0, 1.0, Vec2::Zero(), f), Similarity{});
         ASSERT_TRUE(m.found);
         const double moved = m.motion.max_displacement(v.roi);
         worst = std::max(worst, moved);
-        EXPECT_LE(moved, 0.05) << tone << ", press " << k << ", frame " << f << ": " << m.patches_used << " patches kept";
+        EXPECT_LE(moved, 0.15) << tone << ", press " << k << ", frame " << f << ": " << m.patches_used << " patches kept";
+        for (std::size_t c = 0; c < corners.size(); ++c) mean[c] += m.motion.displacement(corners[c]) / frames;
+      }
+      for (const Vec2& c : mean) {
+        worst_mean = std::max(worst_mean, c.norm());
+        EXPECT_LE(c.norm(), 0.05) << tone << ", press " << k << ": mean motion read over " << frames << " frames";
       }
     }
-    std::printf("%s skin (texture seed %u), strong blanching in each of %zu patches and in all: motion read at most %.4f px\n",
-                tone.c_str(), texture_seed, probe.patches().size(), worst);
+    std::printf("%s skin (texture seed %u), strong blanching in each of %zu patches and in all: motion read at most %.4f px "
+                "in a frame, %.4f px on average\n",
+                tone.c_str(), texture_seed, probe.patches().size(), worst, worst_mean);
   }
 }
 
@@ -174,7 +184,9 @@ TEST(Registration, APatchCoveredInGlareIsLeftOut) {
   EXPECT_FALSE(m.inlier[glared]);
   EXPECT_FALSE(std::isfinite(m.patch_shift[glared].x()));
   for (std::size_t k = 0; k < m.glare.size(); ++k)
-    if (k != glared) EXPECT_FALSE(m.glare[k]) << "patch " << k;
+    if (k != glared) {
+      EXPECT_FALSE(m.glare[k]) << "patch " << k;
+    }
   EXPECT_LE(motion_error(m.motion, shift, 0, Vec2::Zero(), v.roi), 0.05);
   // Glare in the reference frame: that patch is never used.
   MotionRegistration reg2(cv::Size(v.map.width, v.map.height), v.roi, {});
@@ -187,7 +199,7 @@ TEST(Registration, APatchCoveredInGlareIsLeftOut) {
 
 TEST(Registration, RefusesBadOptions) {
   RegistrationOptions o;
-  o.channel = 3;
+  o.green_ratio = 1;
   EXPECT_THROW(o.validate(), std::invalid_argument);
   o = {};
   o.highpass_sigma_px = 0;

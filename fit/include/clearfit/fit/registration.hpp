@@ -3,24 +3,24 @@
 //
 // What is registered. Blanching multiplies the skin's light by a smooth field
 // that changes green most and red least (absorption k_R ≈ 0.2·k_G, SKIN.md).
-// Each patch is read as the log of linear red (a multiplicative field becomes
-// an added one, exposure a constant), at half resolution (pyrDown), minus its
-// Gaussian blur at `highpass_sigma_px`: what is left is the skin's texture
-// (ridges, mottle), and a blanching field that varies slowly over that scale
-// drops out.
+// Each patch is read as ln R − ρ·ln G (ρ = green_ratio ≈ k_R/k_G): the
+// blanching cancels, exposure becomes a constant, and the skin's texture
+// (albedo, common to the channels) stays at 1 − ρ of its contrast; at half
+// resolution (pyrDown), minus its Gaussian blur at `highpass_sigma_px` (the
+// fall-off and what is left of slow fields drop out).
 //
 // Where. A grid × grid set of patches spread over the region of interest (on the skin);
 // a patch whose reference or current frame shows glare (glare_fraction) is
 // left out of that frame. Each patch's translation is found to a fraction of a
-// pixel by inverse-compositional Lucas–Kanade on the filtered patch, started
-// from the previous frame's motion plus a phase correlation (jumps).
+// pixel by enhanced correlation (ECC, translation) of the filtered patch, started
+// from the previous frame's motion.
 //
 // How they combine. A similarity transform of the image (translation,
 // rotation, scale about the roi's centre) is fitted to the patch translations
 // by iteratively reweighted least squares with Tukey's biweight on residuals
 // scaled by their robust spread: a patch that blanching, glare or a sliding
 // fold disturbs more than the others is rejected. With fewer than three patches
-// left, translation only (their weighted median).
+// left, translation only (their reweighted mean).
 #include <clearfit/geometry/mesh.hpp>
 #include <opencv2/core.hpp>
 
@@ -31,10 +31,13 @@ namespace clearfit {
 struct RegistrationOptions {
   int grid = 3;                     ///< patches per side, spread over the roi
   int patch_size = 128;             ///< patch edge, full-resolution px (shrunk to fit grid patches across the roi)
-  int channel = 2;                  ///< BGR index of the channel registered: 2 = red, the one blanching changes least
+  /// The image registered is ln R − ρ·ln G: blanching changes ln R by about ρ = k_R/k_G ≈ 0.2 of
+  /// ln G (SKIN.md), so it cancels, while the texture (albedo, common to the channels) stays at 1 − ρ.
+  double green_ratio = 0.2;
   int downsample = 2;               ///< 1: full resolution; 2: half (pyrDown)
-  double highpass_sigma_px = 3.0;   ///< Gaussian subtracted from the (downsampled) log image, its px
-  int iterations = 20;              ///< Lucas–Kanade iterations per patch at most
+  double smooth_sigma_px = 0;       ///< Gaussian against noise, px at the registered resolution (0: none)
+  double highpass_sigma_px = 8.0;   ///< Gaussian subtracted (fall-off, slow fields), px at the registered resolution
+  int iterations = 20;              ///< ECC iterations per patch at most
   double max_glare_fraction = 0.01; ///< a patch with more glare pixels than this (glare_fraction) is left out
   double tukey_c = 4.685;           ///< Tukey biweight constant, in units of the residuals' robust σ
   double min_sigma_px = 0.02;       ///< floor of that σ (noise-free patches agree to better than this)
@@ -85,7 +88,7 @@ class MotionRegistration {
 
  private:
   struct Patch {
-    cv::Mat t, tx, ty, window;  ///< filtered reference (at the registered resolution), its gradients, a Hann window
+    cv::Mat t, tx, ty;          ///< filtered reference (at the registered resolution) and its gradients
     double h[3] = {0, 0, 0};    ///< Hessian Σ tx², Σ tx·ty, Σ ty²
     bool usable = false;
   };
