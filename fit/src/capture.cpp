@@ -167,7 +167,11 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
         const Similarity start = sums.motion.empty() ? motion : sums.motion.back();
         registration.run([&motion, &patches_used, registration_of, &frame, start] {
           const RegistrationResult r = registration_of->measure(frame, start);
-          motion = r.motion;
+          // Every patch left out for glare: the frame cannot say how it moved; it keeps the
+          // previous frame's motion, and the glare check refuses a capture that is mostly glare.
+          const bool all_glare = !r.found && !r.glare.empty() &&
+                                 std::all_of(r.glare.begin(), r.glare.end(), [](std::uint8_t g) { return g != 0; });
+          motion = all_glare ? start : r.motion;
           patches_used = r.patches_used;
         });
       }
