@@ -82,7 +82,7 @@ TEST_F(Scene, BadKeysAndTypesAreNamedWithTheirLine) {
 TEST_F(Scene, RulesNameTheKeyOrTheOptionWithTheValue) {
   // A value breaking a rule names where it came from: the scene's key, or the option that overrode it.
   scene(std::string(kScene) + "skin_ior: 0.5\n");
-  expect_input_error({"map", "--scene", "part/scene.yaml"}, {"scene.yaml", "'skin_ior'", "got 0.5", ">= 1"});
+  expect_input_error({"map", "--scene", "part/scene.yaml"}, {"scene.yaml", "'skin_ior'", "got 0.5", "from 1 to 3"});
   expect_input_error({"map", "--scene", "part/scene.yaml", "--skin-ior", "0.75"}, {"--skin-ior", "got 0.75"});
   scene("mesh: slab.obj\nmap:\n  grid_step: 3\n");
   expect_input_error({"map", "--scene", "part/scene.yaml"}, {"'map.grid_step'", "got 3", "power of two"});
