@@ -5,6 +5,7 @@
 // (or file), the old one or the new one, and the next run removes what the
 // killed one left beside it.
 #include "cli_support.hpp"
+#include "slab_part.hpp"
 
 #include <clearfit/camera/board.hpp>
 #include <clearfit/camera/calibrate.hpp>
@@ -81,14 +82,7 @@ class CrashSafety : public CliTest {
  protected:
   void SetUp() override {
     CliTest::SetUp();
-    save_mesh(shapes::slab(24, 18, 3, 2), work() / "slab.obj");
-    CameraModel cam;
-    cam.lensmodel = "LENSMODEL_PINHOLE";
-    cam.intrinsics = {300, 300, 79.5, 59.5};
-    cam.width = 160, cam.height = 120;
-    cam.cam_from_part.rotation = Eigen::Vector3d(1, -1, -1).asDiagonal();
-    cam.cam_from_part.translation = Vec3(0, 0, 60);
-    write_cameramodel(cam, work() / "cam.cameramodel");
+    write_slab_part(work());
     write_text(work() / "scene.yaml",
                "mesh: slab.obj\nior: 1.49\ncontact: {group: contact}\ncamera: cam.cameramodel\n"
                "captures: {baseline: sim/baseline, worn: sim/worn, window_frames: 3, motion_compensation: false}\noutputs: {folder: out, texel_mm: 0.2}\n"

@@ -3,6 +3,7 @@
 // error) or left an empty folder behind; each must now exit 2 with a message
 // naming the file and the defect, and leave nothing.
 #include "cli_support.hpp"
+#include "slab_part.hpp"
 
 #include <clearfit/camera/board.hpp>
 #include <clearfit/camera/calibrate.hpp>
@@ -17,14 +18,7 @@ class Reliability : public CliTest {
  protected:
   void SetUp() override {
     CliTest::SetUp();
-    save_mesh(shapes::slab(24, 18, 3, 2), work() / "slab.obj");
-    CameraModel cam;
-    cam.lensmodel = "LENSMODEL_PINHOLE";
-    cam.intrinsics = {300, 300, 79.5, 59.5};
-    cam.width = 160, cam.height = 120;
-    cam.cam_from_part.rotation = Eigen::Vector3d(1, -1, -1).asDiagonal();
-    cam.cam_from_part.translation = Vec3(0, 0, 60);
-    write_cameramodel(cam, work() / "cam.cameramodel");
+    write_slab_part(work());
   }
   std::vector<std::string> map_args(const std::string& ior) {
     return {"map", "--mesh", "slab.obj", "--camera", "cam.cameramodel", "--contact-group", "contact", "--ior", ior, "--out", "m.npy"};

@@ -6,6 +6,7 @@
 #include <nlohmann/json.hpp>
 
 #include "cli_support.hpp"
+#include "slab_part.hpp"
 
 using namespace clearfit;
 using namespace clearfit::cli_test;
@@ -15,14 +16,7 @@ class Simulate : public CliTest {
  protected:
   void SetUp() override {
     CliTest::SetUp();
-    save_mesh(shapes::slab(24, 18, 3, 2), work() / "slab.obj");
-    CameraModel cam;
-    cam.lensmodel = "LENSMODEL_PINHOLE";
-    cam.intrinsics = {300, 300, 79.5, 59.5};
-    cam.width = 160, cam.height = 120;
-    cam.cam_from_part.rotation = Eigen::Vector3d(1, -1, -1).asDiagonal();
-    cam.cam_from_part.translation = Vec3(0, 0, 60);
-    write_cameramodel(cam, work() / "cam.cameramodel");
+    write_slab_part(work());
   }
   void scene(const std::string& simulation) {
     write_text(work() / "scene.yaml", std::string("mesh: slab.obj\nior: 1.49\ncontact:\n  group: contact\ncamera: cam.cameramodel\n") +
