@@ -174,7 +174,7 @@ class SimulationParser {
   }
   void parse_presses(const YAML::Node& p, SimulationSection& o) {
     const std::string pre = "simulation.presses";
-    r_.only_keys(p, pre, {"diameters_mm", "levels", "max_kpa", "repetitions", "profile", "frames", "px_per_mm", "trial_jitter", "offset_sd"});
+    r_.only_keys(p, pre, {"diameters_mm", "levels", "max_kpa", "repetitions", "profile", "frames", "px_per_mm", "trial_jitter", "offset_sd", "ring_mm"});
     sim::PressOptions po;
     if (p["diameters_mm"]) po.diameters_mm = numbers(p["diameters_mm"], pre + ".diameters_mm", 0);
     for (double d : po.diameters_mm)
@@ -192,6 +192,8 @@ class SimulationParser {
     num(p, "px_per_mm", pre + ".px_per_mm", po.px_per_mm, 0.1, 1000);
     num(p, "trial_jitter", pre + ".trial_jitter", po.trial_jitter, 0, 0.99);
     num(p, "offset_sd", pre + ".offset_sd", po.offset_sd, 0, 0.99);
+    num(p, "ring_mm", pre + ".ring_mm", po.ring_mm, 0, 5);
+    if (po.ring_mm > 0 && po.ring_mm < 0.01) r_.fail(p["ring_mm"], pre + ".ring_mm", "expected 0 (no profiles) or a width from 0.01 mm");
     if (auto v = r_.get<std::string>(p, "profile", pre + ".profile", "sneddon or uniform")) {
       if (*v == "sneddon") po.profile = sim::PressOptions::Profile::sneddon;
       else if (*v == "uniform") po.profile = sim::PressOptions::Profile::uniform;

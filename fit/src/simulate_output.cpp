@@ -5,6 +5,7 @@
 
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <map>
 #include <numbers>
@@ -85,66 +86,113 @@ void PressOptions::validate() const {
   if (!(px_per_mm > 0)) throw std::invalid_argument("PressOptions.px_per_mm must be > 0");
   if (!(trial_jitter >= 0 && trial_jitter < 1)) throw std::invalid_argument("PressOptions.trial_jitter must be in [0, 1)");
   if (!(offset_sd >= 0 && offset_sd < 1)) throw std::invalid_argument("PressOptions.offset_sd must be in [0, 1)");
+  if (!(ring_mm == 0 || (ring_mm >= 0.01 && ring_mm <= 5))) throw std::invalid_argument("PressOptions.ring_mm must be 0 or in [0.01, 5] mm");
 }
+
+namespace {
+/// The noiseless response of one press: the disc's mean signal and, for the
+/// sneddon profile with rings, each ring's mean signal.
+struct PressResponse {
+  double disc = 0;
+  std::vector<double> edges, rings;
+};
+
+PressResponse press_response(const SkinParameters& skin, const PressOptions& o, double radius_mm, double mean_kpa) {
+  const double kg = skin.absorption[1];
+  PressResponse out;
+  out.disc = kg * steady_blood_loss(skin, mean_kpa);
+  if (o.profile != PressOptions::Profile::sneddon) return out;
+  const double margin = 1.0;  // as `clearfit presses` (SessionOptions::profile_margin_mm)
+  if (o.ring_mm > 0)
+    for (double e = 0; e < radius_mm + margin + 1e-9; e += o.ring_mm) out.edges.push_back(e);
+  const std::size_t rings = out.edges.empty() ? 0 : out.edges.size() - 1;
+  std::vector<double> sum(rings, 0.0), count(rings, 0.0);
+  if (mean_kpa <= 0) {  // no press: every ring reads the unpressed skin
+    out.rings.assign(rings, out.disc);
+    return out;
+  }
+  const contact::FlatPunch punch{radius_mm, mean_kpa * kPi * radius_mm * radius_mm / 1000, 3.0};
+  ChartField field;
+  const double h = std::min(0.05, radius_mm / 20), m = radius_mm + margin + 4 * skin.blur_sigma_mm + 0.5;
+  field.grid = ChartGrid::covering(Vec2(-m, -m), Vec2(m, m), h);
+  field.value.resize(field.grid.size());
+  for (int j = 0; j < field.grid.height; ++j)
+    for (int i = 0; i < field.grid.width; ++i)
+      field.value[field.grid.index(i, j)] = static_cast<float>(punch.pressure_kpa(field.grid.uv(i, j).norm()));
+  const ChartField drive = skin_drive(skin, field);
+  double disc = 0;
+  int n = 0;
+  for (int j = 0; j < field.grid.height; ++j)
+    for (int i = 0; i < field.grid.width; ++i) {
+      const double r = field.grid.uv(i, j).norm();
+      const double y = kg * steady_blood_loss(skin, drive.value[field.grid.index(i, j)]);
+      if (r < radius_mm) disc += y, ++n;
+      if (rings > 0 && r < out.edges.back()) {
+        const auto k = static_cast<std::size_t>(std::upper_bound(out.edges.begin(), out.edges.end(), r) - out.edges.begin()) - 1;
+        sum[k] += y, count[k] += 1;
+      }
+    }
+  out.disc = disc / n;
+  for (std::size_t k = 0; k < rings; ++k) out.rings.push_back(count[k] > 0 ? sum[k] / count[k] : out.disc);
+  return out;
+}
+}  // namespace
 
 std::vector<PressTrial> simulate_presses(const SkinParameters& skin, const CameraSettings& cam, const PressOptions& o,
                                          std::uint64_t seed) {
   skin.validate();
   cam.validate();
   o.validate();
-  const double kg = skin.absorption[1];
-  std::map<std::pair<int, int>, double> noiseless;  // (diameter index, level) → y
-  for (std::size_t di = 0; di < o.diameters_mm.size(); ++di) {
-    const double r = o.diameters_mm[di] / 2;
-    for (int l = 0; l < o.levels; ++l) {
-      const double pm = o.max_kpa * l / (o.levels - 1);
-      double y = kg * steady_blood_loss(skin, pm);
-      if (o.profile == PressOptions::Profile::sneddon && pm > 0) {
-        const contact::FlatPunch punch{r, pm * kPi * r * r / 1000, 3.0};
-        ChartField field;
-        const double h = std::min(0.05, r / 20), m = r + 4 * skin.blur_sigma_mm + 1.0;
-        field.grid = ChartGrid::covering(Vec2(-m, -m), Vec2(m, m), h);
-        field.value.resize(field.grid.size());
-        for (int j = 0; j < field.grid.height; ++j)
-          for (int i = 0; i < field.grid.width; ++i)
-            field.value[field.grid.index(i, j)] = static_cast<float>(punch.pressure_kpa(field.grid.uv(i, j).norm()));
-        const ChartField drive = skin_drive(skin, field);
-        double sum = 0;
-        int n = 0;
-        for (int j = 0; j < field.grid.height; ++j)
-          for (int i = 0; i < field.grid.width; ++i)
-            if (field.grid.uv(i, j).norm() < r) sum += kg * steady_blood_loss(skin, drive.value[field.grid.index(i, j)]), ++n;
-        y = sum / n;
-      }
-      noiseless[{static_cast<int>(di), l}] = y;
-    }
-  }
+  std::map<std::pair<int, int>, PressResponse> noiseless;  // (diameter index, level) → response
+  for (std::size_t di = 0; di < o.diameters_mm.size(); ++di)
+    for (int l = 0; l < o.levels; ++l)
+      noiseless[{static_cast<int>(di), l}] = press_response(skin, o, o.diameters_mm[di] / 2, o.max_kpa * l / (o.levels - 1));
   std::mt19937_64 rng(seed ^ 0x7072657373ULL);
+  std::mt19937_64 ring_rng(seed ^ 0x72696e6773ULL);  // own stream: the disc signals stay as without profiles
   std::normal_distribution<double> normal(0, 1);
   std::vector<PressTrial> trials;
   int trial = 0;
   for (int rep = 0; rep < o.repetitions; ++rep)
     for (std::size_t di = 0; di < o.diameters_mm.size(); ++di)
       for (int l = 0; l < o.levels; ++l) {
+        const PressResponse& y = noiseless[{static_cast<int>(di), l}];
         PressTrial t;
         t.trial = ++trial;
         t.diameter_mm = o.diameters_mm[di];
         t.mean_pressure_kpa = o.max_kpa * l / (o.levels - 1);
         t.force_n = t.mean_pressure_kpa * kPi * 0.25 * t.diameter_mm * t.diameter_mm / 1000;
-        t.signal_noiseless = noiseless[{static_cast<int>(di), l}];
-        t.signal = t.signal_noiseless * (1 + o.trial_jitter * normal(rng)) + o.offset_sd * normal(rng) +
-                   press_signal_sd(skin, cam, o, t.diameter_mm) * normal(rng);
+        t.signal_noiseless = y.disc;
+        const double gain = 1 + o.trial_jitter * normal(rng), offset = o.offset_sd * normal(rng);
+        const double disc_sd = press_signal_sd(skin, cam, o, t.diameter_mm);
+        t.signal = y.disc * gain + offset + disc_sd * normal(rng);
+        // Each ring: the press's gain and offset, and the sensor noise of its own area.
+        t.ring_edges_mm = y.edges;
+        const double disc_area = kPi * 0.25 * t.diameter_mm * t.diameter_mm;
+        for (std::size_t k = 0; k < y.rings.size(); ++k) {
+          const double area = kPi * (y.edges[k + 1] * y.edges[k + 1] - y.edges[k] * y.edges[k]);
+          t.ring_signal.push_back(y.rings[k] * gain + offset + disc_sd * std::sqrt(disc_area / area) * normal(ring_rng));
+        }
         trials.push_back(t);
       }
   return trials;
 }
 
 void write_presses_csv(const std::vector<PressTrial>& trials, const std::filesystem::path& path) {
+  const bool profiles = !trials.empty() && std::all_of(trials.begin(), trials.end(), [](const PressTrial& t) { return !t.ring_signal.empty(); });
+  auto list = [](const std::vector<double>& v) {
+    std::ostringstream s;
+    s.precision(9);
+    for (std::size_t k = 0; k < v.size(); ++k) s << (k ? ";" : "") << v[k];
+    return s.str();
+  };
   std::ostringstream s;
   s.precision(9);
-  s << "trial,indenter_diameter_mm,force_n,mean_pressure_kpa,signal\n";
-  for (const PressTrial& t : trials)
-    s << t.trial << ',' << t.diameter_mm << ',' << t.force_n << ',' << t.mean_pressure_kpa << ',' << t.signal << '\n';
+  s << "trial,indenter_diameter_mm,force_n,mean_pressure_kpa,signal" << (profiles ? ",ring_edges_mm,ring_signal" : "") << "\n";
+  for (const PressTrial& t : trials) {
+    s << t.trial << ',' << t.diameter_mm << ',' << t.force_n << ',' << t.mean_pressure_kpa << ',' << t.signal;
+    if (profiles) s << ',' << list(t.ring_edges_mm) << ',' << list(t.ring_signal);
+    s << '\n';
+  }
   write_file_atomically(path, s.str());
 }
 

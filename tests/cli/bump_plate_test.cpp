@@ -47,7 +47,7 @@ std::string plate_scene(const Plate& p, const fs::path& mesh, const fs::path& ca
     << "  pressure:\n    texel_mm: " << p.texel_mm << "\n    sources:\n"
     << "      - {name: bump, type: punch, center_part_mm: [0, 0, " << -p.height << "], radius_mm: " << p.radius
     << ", force_n: " << p.force_n << "}\n"
-    << "  presses: {diameters_mm: [2, 3, 4, 5], levels: 9, repetitions: 3}\n";
+    << "  presses: {diameters_mm: [2, 3, 4, 5], levels: 9, repetitions: 3, ring_mm: 0}\n";  // the study's disc means
   return s.str();
 }
 

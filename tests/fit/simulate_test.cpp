@@ -3,6 +3,8 @@
 // Seeds are fixed and printed.
 #include <clearfit/error.hpp>
 #include <clearfit/fit/contact_mechanics.hpp>
+#include <clearfit/fit/pressure_field_fit.hpp>
+#include <clearfit/fit/pressure_model.hpp>
 #include <clearfit/fit/simulate.hpp>
 #include <clearfit/fit/srgb.hpp>
 #include <clearfit/geometry/shapes.hpp>
@@ -294,6 +296,45 @@ TEST(Simulate, PressesFollowTheLogisticAndSneddonBlanchesLess) {
   EXPECT_EQ(header, "trial,indenter_diameter_mm,force_n,mean_pressure_kpa,signal");
   EXPECT_EQ(first.substr(0, 4), "1,3,");
   fs::remove(csv);
+}
+
+TEST(Simulate, SneddonPressesCarryTheRadialProfileThePressesCommandMeasures) {
+  SkinParameters skin;
+  CameraSettings cam;
+  PressOptions o;
+  o.diameters_mm = {5};
+  o.trial_jitter = 0, o.offset_sd = 0;
+  const auto trials = simulate_presses(skin, cam, o, 9);
+  ASSERT_EQ(trials.size(), 27u);
+  const PressTrial& t = trials[4];  // 15 kPa mean
+  // Rings of 0.2 mm from the axis to the rim + 1 mm, as `clearfit presses` writes them.
+  ASSERT_EQ(t.ring_edges_mm.size(), 18u);
+  EXPECT_DOUBLE_EQ(t.ring_edges_mm.front(), 0.0);
+  EXPECT_NEAR(t.ring_edges_mm.back(), 3.4, 1e-9);
+  ASSERT_EQ(t.ring_signal.size(), 17u);
+  // Sneddon's rim carries more pressure than the centre (p_mean/2 there): the ring at the rim blanches
+  // more than the axis; beyond the rim the blur fades it towards the unpressed skin.
+  EXPECT_GT(t.ring_signal[11], 1.5 * t.ring_signal[0]);
+  EXPECT_LT(t.ring_signal[16], 0.5 * t.ring_signal[11]);
+  // The rings inside the disc, weighted by their area, average to the disc's signal (sensor noise only).
+  double sum = 0, area = 0;
+  for (std::size_t k = 0; k + 1 < t.ring_edges_mm.size() && t.ring_edges_mm[k + 1] <= 2.5 + 1e-9; ++k) {
+    const double a = t.ring_edges_mm[k + 1] * t.ring_edges_mm[k + 1] - t.ring_edges_mm[k] * t.ring_edges_mm[k];
+    sum += a * t.ring_signal[k], area += a;
+  }
+  EXPECT_NEAR(sum / area, t.signal_noiseless, 0.03 * t.signal_noiseless);
+  // Written and read back as the profile columns calibrate-pressure fits.
+  const fs::path csv = fs::temp_directory_path() / ("clearfit_profiles_" + std::to_string(::getpid()) + ".csv");
+  write_presses_csv(trials, csv);
+  const auto read = read_presses_csv(csv);
+  fs::remove(csv);
+  ASSERT_EQ(read.size(), trials.size());
+  EXPECT_TRUE(presses_have_profiles(read));
+  EXPECT_EQ(read[4].ring_signal.size(), 17u);
+  EXPECT_NEAR(read[4].ring_signal[11], t.ring_signal[11], 1e-9);
+  // The uniform profile has no field to resolve.
+  o.profile = PressOptions::Profile::uniform;
+  EXPECT_TRUE(simulate_presses(skin, cam, o, 9)[4].ring_signal.empty());
 }
 
 }  // namespace clearfit::sim

@@ -302,16 +302,22 @@ struct PressOptions {
   double px_per_mm = 20;
   double trial_jitter = 0.05;  ///< relative SD of a trial's response
   double offset_sd = 0.001;    ///< additive SD of a trial's signal (baseline drift between phases)
+  /// Ring width of each press's radial signal profile (the rings `clearfit presses`
+  /// measures: 0 to the radius + 1 mm); 0 writes no profiles. Profiles are written
+  /// for the sneddon profile only (a uniform disc has no field to resolve).
+  double ring_mm = 0.2;
   void validate() const;
 };
 struct PressTrial {
   int trial = 0;
   double diameter_mm = 0, force_n = 0, mean_pressure_kpa = 0, signal = 0;
   double signal_noiseless = 0;
+  std::vector<double> ring_edges_mm, ring_signal;  ///< radial profile (empty: none)
 };
 std::vector<PressTrial> simulate_presses(const SkinParameters& skin, const CameraSettings& camera,
                                          const PressOptions& options, std::uint64_t seed);
-/// presses.csv: header trial,indenter_diameter_mm,force_n,mean_pressure_kpa,signal. Atomic.
+/// presses.csv: header trial,indenter_diameter_mm,force_n,mean_pressure_kpa,signal, and
+/// ring_edges_mm,ring_signal (';'-separated) when the trials carry profiles. Atomic.
 void write_presses_csv(const std::vector<PressTrial>& trials, const std::filesystem::path& path);
 
 /// Writes truth.json (schema clearfit.simulation-truth/1), truth_pressure.npy
