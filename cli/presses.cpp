@@ -2,6 +2,7 @@
 // a clear flat indenter, and the force gauge's log) → presses.csv for
 // `clearfit calibrate-pressure`, with each press's radial signal profile, and a
 // session report (JSON + PNG).
+#include <clearfit/output_folder.hpp>
 #include <clearfit/cli/commands.hpp>
 
 #include <clearfit/atomic_file.hpp>
@@ -164,10 +165,10 @@ Run add_presses(CLI::App& app) {
     write_file_atomically(o->out, csv);
     std::printf("wrote %s\n", o->out.c_str());
     if (!o->report.empty()) {
-      std::filesystem::create_directories(o->report);
-      write_file_atomically(std::filesystem::path(o->report) / "session.json", json);
-      write_file_atomically(std::filesystem::path(o->report) / "session.png",
-                            std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
+      StagedFolder staged(o->report);  // the report folder swapped in whole
+      write_file_atomically(staged.path() / "session.json", json);
+      write_file_atomically(staged.path() / "session.png", std::string_view(reinterpret_cast<const char*>(png.data()), png.size()));
+      staged.commit();
       std::printf("wrote %s/session.json, session.png\n", o->report.c_str());
     }
     return 0;

@@ -2,6 +2,7 @@
 // pressed by a clear flat indenter, the force gauge's log on its own clock, the
 // truth), every parameter a command option with its default
 // (sim::CalibrationSessionSpec).
+#include <clearfit/output_folder.hpp>
 #include <clearfit/cli/commands.hpp>
 
 #include <clearfit/error.hpp>
@@ -58,12 +59,14 @@ Run add_simulate_session(CLI::App& app) {
     spec.format = sim::parse_video_format(o->format);
     spec.validate();
     int last = -1;
-    const auto truth = sim::render_calibration_session(spec, o->out, [&](int done, int total) {
+    StagedFolder staged(o->out);  // a killed run leaves the old folder (or none), never half a session
+    const auto truth = sim::render_calibration_session(spec, staged.path(), [&](int done, int total) {
       if (!o->quiet && 10 * done / total != last) {
         last = 10 * done / total;
         std::cerr << "clearfit simulate-session: frame " << done << "/" << total << "\n";
       }
     });
+    staged.commit();
     std::cout << "wrote into " << o->out << ": " << truth.video << " (" << truth.frames << " frames), force.csv, camera.cameramodel, truth.json\n"
               << "truth: offset " << spec.offset_s << " s, drift " << spec.drift_ppm << " ppm, " << truth.presses.size()
               << " presses; person p50 " << truth.person.p50_kpa << " kPa, width " << truth.person.width_kpa << " kPa, y_max "
