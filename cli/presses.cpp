@@ -58,7 +58,8 @@ nlohmann::json report_json(const SessionAnalysis& s, const SessionOptions& o) {
           {"video", {{"frames", s.frames}, {"fps", s.fps}, {"width", s.width}, {"height", s.height}}},
           {"clock", {{"offset_s", s.clock.offset_s}, {"offset_sigma_s", s.clock.offset_sigma_s}, {"drift_ppm", s.clock.drift * 1e6},
                      {"drift_sigma_ppm", s.clock.drift_sigma * 1e6}, {"correlation", s.clock.correlation},
-                     {"second_peak_ratio", s.clock.second_peak_ratio}, {"events", s.clock.events},
+                     {"second_peak_ratio", s.clock.second_peak_ratio}, {"events", s.clock.events}, {"trace_fit", s.clock.trace_fit},
+                     {"tau_on_s", s.clock.tau_on_s}, {"tau_off_s", s.clock.tau_off_s},  // NaN is written as null
                      {"note", "gauge time = (1 + drift) * video time + offset"}}},
           {"tare_n", s.tare_n},
           {"indenter", {{"radius_mm", o.indenter_radius_mm}, {"found", s.centre_found}, {"centre_px", {s.centre_px.x(), s.centre_px.y()}},

@@ -1,10 +1,15 @@
 // The gauge's clock against the video's (force_log.hpp): a coarse correlation
-// search over offsets, then a least-squares fit of offset and drift to the
-// press onsets and releases seen in both traces.
+// search over offsets, a least-squares fit of offset and drift to the press
+// onsets and releases seen in both traces, then a fit of the whole trace around
+// every press (offset, drift and the blanching's two time constants; each press
+// its own rest level and amplitude, which absorb the skin's nonlinear response
+// to the press's force).
 #include <clearfit/error.hpp>
 #include <clearfit/fit/force_log.hpp>
 
 #include <Eigen/Dense>
+#include <unsupported/Eigen/NonLinearOptimization>
+#include <unsupported/Eigen/NumericalDiff>
 
 #include <algorithm>
 #include <cmath>
@@ -34,7 +39,7 @@ Response response(const ForceLog& log, const AlignmentOptions& o) {
   double state = 0;
   std::size_t j = 0;
   for (std::size_t i = 0; i < n; ++i) {
-    const double t = out.t0 + double(i) * out.dt;
+    const double t = out.t0 + (double(i) - 0.5) * out.dt;  // the force over the step before the sample, at its middle
     while (j + 2 < log.time_s.size() && log.time_s[j + 1] < t) ++j;
     const double w = std::clamp((t - log.time_s[j]) / (log.time_s[j + 1] - log.time_s[j]), 0.0, 1.0);
     const double u = std::max(0.0, (log.force_n[j] + w * (log.force_n[j + 1] - log.force_n[j])) / top);
@@ -105,6 +110,132 @@ std::vector<Event> match_events(const Response& resp, const std::vector<ForcePre
   return events;
 }
 
+/// The whole-trace model: the blanching B follows the force's steady response L(u) (u the force over the log's
+/// largest, L a normalised logistic: blanching is a sigmoid of pressure, so a strong press starts blanching early
+/// in its ramp and a weak one late) through a first-order lag (τ_on rising, τ_off falling); around press k
+/// (video samples window[k]) signal = rest_k + A·B(gauge time). x = (offset, drift·1e3, ln τ_on, ln τ_off, u50,
+/// ln u_w); rest_k and A are solved linearly for every x (variable projection).
+Response trace_response(const ForceLog& log, const Eigen::VectorXd& x) {
+  const double tau_on = std::exp(std::clamp(x[2], -5.0, 3.0)), tau_off = std::exp(std::clamp(x[3], -5.0, 3.0));
+  const double u50 = x[4], uw = std::exp(std::clamp(x[5], -6.0, 3.0));
+  auto sig = [](double z) { return 1 / (1 + std::exp(-z)); };
+  const double s0 = sig(-u50 / uw);
+  Response out;
+  out.t0 = log.time_s.front();
+  const double top = std::max(1e-12, *std::max_element(log.force_n.begin(), log.force_n.end()));
+  const auto n = static_cast<std::size_t>((log.time_s.back() - out.t0) / out.dt) + 1;
+  out.r.resize(n);
+  double state = 0;
+  std::size_t j = 0;
+  for (std::size_t i = 0; i < n; ++i) {
+    const double t = out.t0 + (double(i) - 0.5) * out.dt;  // the force over the step before the sample, at its middle
+    while (j + 2 < log.time_s.size() && log.time_s[j + 1] < t) ++j;
+    const double w = std::clamp((t - log.time_s[j]) / (log.time_s[j + 1] - log.time_s[j]), 0.0, 1.0);
+    const double u = std::max(0.0, (log.force_n[j] + w * (log.force_n[j + 1] - log.force_n[j])) / top);
+    const double target = (sig((u - u50) / uw) - s0) / (1 - s0);
+    state += (target - state) * (1 - std::exp(-out.dt / (target > state ? tau_on : tau_off)));
+    out.r[i] = state;
+  }
+  return out;
+}
+
+struct TraceResiduals {
+  using Scalar = double;
+  enum { InputsAtCompileTime = Eigen::Dynamic, ValuesAtCompileTime = Eigen::Dynamic };
+  using InputType = Eigen::VectorXd;
+  using ValueType = Eigen::VectorXd;
+  using JacobianType = Eigen::MatrixXd;
+  const ForceLog* log;
+  const std::vector<double>* tv;
+  const std::vector<double>* s;
+  std::vector<std::vector<std::size_t>> windows;
+  int inputs() const { return 6; }
+  int values() const {
+    int n = 0;
+    for (const auto& w : windows) n += static_cast<int>(w.size());
+    return n;
+  }
+  int operator()(const Eigen::VectorXd& x, Eigen::VectorXd& f) const {
+    const Response resp = trace_response(*log, x);
+    const auto rows = static_cast<Eigen::Index>(values()), cols = static_cast<Eigen::Index>(windows.size()) + 1;
+    Eigen::MatrixXd a = Eigen::MatrixXd::Zero(rows, cols);
+    Eigen::VectorXd y(rows);
+    Eigen::Index row = 0;
+    for (std::size_t k = 0; k < windows.size(); ++k)
+      for (const std::size_t i : windows[k]) {
+        const double r = resp.at((1 + 1e-3 * x[1]) * (*tv)[i] + x[0]);
+        a(row, static_cast<Eigen::Index>(k)) = 1;
+        a(row, cols - 1) = std::isfinite(r) ? r : 0;
+        y[row++] = (*s)[i];
+      }
+    f = y - a * a.colPivHouseholderQr().solve(y);
+    return 0;
+  }
+};
+
+/// Refines `a` by the whole-trace fit; keeps `a` when the fit fails or moves further than the events allow.
+void refine_on_trace(const ForceLog& log, const std::vector<ForcePress>& presses, const std::vector<double>& tv,
+                     const std::vector<double>& signal, const AlignmentOptions& o, ClockAlignment& a) {
+  TraceResiduals f{&log, &tv, &signal, {}};
+  for (std::size_t k = 0; k < presses.size(); ++k) {
+    // From this press's rest to the next press's rest (or 4 τ_off after its release).
+    const double from = presses[k].rest_start_s;
+    const double to = k + 1 < presses.size() ? presses[k + 1].rest_start_s : presses[k].end_s + 4 * o.tau_off_s;
+    std::vector<std::size_t> w;
+    for (std::size_t i = 0; i < tv.size(); ++i) {
+      const double g = a.to_gauge(tv[i]);
+      if (g >= from && g < to) w.push_back(i);
+    }
+    if (w.size() >= 8) f.windows.push_back(std::move(w));
+  }
+  if (f.windows.size() < 3) return;
+  Eigen::VectorXd x(6);
+  x << a.offset_s, 1e3 * a.drift, std::log(o.tau_on_s), std::log(o.tau_off_s), 0.35, std::log(0.2);
+  Eigen::NumericalDiff<TraceResiduals> nd(f, 1e-4);
+  Eigen::LevenbergMarquardt<Eigen::NumericalDiff<TraceResiduals>> lm(nd);
+  lm.parameters.maxfev = 400;
+  lm.minimize(x);
+  if (!x.allFinite()) return;
+  Eigen::MatrixXd jac(f.values(), 6);
+  nd.df(x, jac);
+  Eigen::VectorXd res(f.values());
+  f(x, res);
+  // Residuals of neighbouring frames are correlated (the pulse, slow drift): the covariance is scaled by the
+  // residuals' correlation length (1 + 2·Σρ over lags while positive).
+  double c0 = res.squaredNorm(), inflation = 1;
+  for (Eigen::Index lag = 1; lag < 50 && lag < res.size(); ++lag) {
+    const double rho = res.head(res.size() - lag).dot(res.tail(res.size() - lag)) / c0;
+    if (rho <= 0) break;
+    inflation += 2 * rho;
+  }
+  const double dof = std::max(1.0, double(res.size()) - 7 - double(f.windows.size()));
+  const Eigen::MatrixXd cov = inflation * c0 / dof * (jac.transpose() * jac).inverse();
+  // The model is not the skin (ramps, overshoot, a nonlinearity of another shape): the presses' jackknife (each
+  // window left out once, refitted) gives the spread that misfit causes; the σ is the larger of the two.
+  const std::size_t n = f.windows.size();
+  Eigen::ArrayXd jk_offset(static_cast<Eigen::Index>(n)), jk_drift(static_cast<Eigen::Index>(n));
+  for (std::size_t k = 0; k < n; ++k) {
+    TraceResiduals fk{&log, &tv, &signal, f.windows};
+    fk.windows.erase(fk.windows.begin() + static_cast<std::ptrdiff_t>(k));
+    Eigen::VectorXd xk = x;
+    Eigen::NumericalDiff<TraceResiduals> ndk(fk, 1e-4);
+    Eigen::LevenbergMarquardt<Eigen::NumericalDiff<TraceResiduals>> lmk(ndk);
+    lmk.parameters.maxfev = 200;
+    lmk.minimize(xk);
+    jk_offset[static_cast<Eigen::Index>(k)] = xk[0], jk_drift[static_cast<Eigen::Index>(k)] = 1e-3 * xk[1];
+  }
+  auto jackknife = [n](const Eigen::ArrayXd& v) { return std::sqrt(double(n - 1) / double(n) * (v - v.mean()).square().sum()); };
+  const double offset_sigma = std::max(std::sqrt(cov(0, 0)), jackknife(jk_offset));
+  const double drift_sigma = std::max(1e-3 * std::sqrt(cov(1, 1)), jackknife(jk_drift));
+  // The events' estimate bounds the refinement: a move beyond 4 of its σ (or a worse σ) is not trusted.
+  if (!(std::isfinite(offset_sigma) && offset_sigma < a.offset_sigma_s && std::abs(x[0] - a.offset_s) < 4 * a.offset_sigma_s + 0.05))
+    return;
+  a.offset_s = x[0], a.drift = 1e-3 * x[1];
+  a.offset_sigma_s = offset_sigma, a.drift_sigma = drift_sigma;
+  a.tau_on_s = std::exp(x[2]), a.tau_off_s = std::exp(x[3]);
+  a.trace_fit = true;
+}
+
 }  // namespace
 
 void AlignmentOptions::validate() const {
@@ -167,12 +298,13 @@ ClockAlignment align_clocks(const ForceLog& log, const std::vector<ForcePress>& 
     a.drift_sigma = std::sqrt(cov(0, 0));
     a.offset_sigma_s = std::sqrt(cov(1, 1));
   }
+  refine_on_trace(log, presses, tv, signal, o, a);
   if (std::abs(a.drift) > o.max_drift)
     throw InputError(file, "clock", "drifts by " + std::to_string(a.drift * 1e6) + " ppm against the video, beyond the " +
                                         std::to_string(o.max_drift * 1e6) + " ppm allowed",
                      "check the log's time unit and that it belongs to this recording");
   a.correlation = correlation(resp, tv, signal, a.offset_s, a.drift);
-  a.lag_s = o.tau_on_s * std::log(2.0);  // the response model's half-rise delay behind a force step
+  a.lag_s = (a.trace_fit ? a.tau_on_s : o.tau_on_s) * std::log(2.0);  // the response model's half-rise delay behind a force step
   return a;
 }
 

@@ -136,7 +136,9 @@ CalibrationSessionTruth render_calibration_session(const CalibrationSessionSpec&
   cv::Mat frame(s.height, s.width, CV_8UC3), noise(s.height, s.width, CV_32FC3);
   const double dt = 1 / s.fps;
   for (int f = 0; f < truth.frames; ++f) {
-    const double tv = f * dt, force = true_force(s, truth.presses, (1 + drift) * tv + s.offset_s);
+    // The frame shows the skin at tv: its blood followed the force over the interval before it, taken at the
+    // interval's middle (the force at tv itself would let the skin answer half a frame early).
+    const double tv = f * dt, force = true_force(s, truth.presses, (1 + drift) * (tv - dt / 2) + s.offset_s);
     const double pulse = pulse_waveform(tv, s.skin.pulse_hz);
     const Eigen::Vector3d rest = radiance_factor(s.skin, 0, pulse);
     noise_rng.fill(noise, cv::RNG::NORMAL, 0.0, s.noise_levels / 255);

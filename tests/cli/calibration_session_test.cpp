@@ -35,7 +35,14 @@ class CalibrationSession : public CliTest {
     ASSERT_EQ(p.exit_code, 0) << p;
     const auto session = nlohmann::json::parse(read_text(work() / "report" / "session.json"));
     EXPECT_TRUE(fs::exists(work() / "report" / "session.png"));
-    EXPECT_NEAR(session.at("clock").at("offset_s").get<double>(), truth.at("clock").at("offset_s").get<double>(), 0.1);
+    const auto& clock = session.at("clock");
+    const double offset = clock.at("offset_s"), t_offset = truth.at("clock").at("offset_s");
+    const double drift = clock.at("drift_ppm"), t_drift = truth.at("clock").at("drift_ppm");
+    std::printf("clock offset %.4f +- %.4f s (truth %.4f), drift %.1f +- %.1f ppm (truth %.1f), trace fit %s\n", offset,
+                clock.at("offset_sigma_s").get<double>(), t_offset, drift, clock.at("drift_sigma_ppm").get<double>(), t_drift,
+                clock.value("trace_fit", false) ? "yes" : "no");
+    EXPECT_NEAR(offset, t_offset, 0.1);
+    EXPECT_NEAR(drift, t_drift, 150.0);
     EXPECT_EQ(session.at("presses").size(), truth.at("presses").size());
     const auto& c_px = session.at("indenter").at("centre_px");
     const auto& t_px = truth.at("indenter").at("centre_px");
@@ -67,9 +74,9 @@ class CalibrationSession : public CliTest {
   }
 };
 
-// Disabled: align_clocks's offset comes out 0.117 s from the truth on this session (drift -380 ppm,
-// offset 7.3 s; the target is 0.1 s); p50 and width hold. To be fixed in the clock alignment.
-TEST_F(CalibrationSession, DISABLED_DarkSkinThroughSlabWithOffsetDriftOvershoot) {
+// The events' fit alone put this session's offset 0.117 s from the truth (sigma 0.064 s); the whole-trace fit
+// puts it within 0.04 s.
+TEST_F(CalibrationSession, DarkSkinThroughSlabWithOffsetDriftOvershoot) {
   check_chain({"--size", "128", "96", "--focal-px", "600", "--fps", "10", "--tone", "dark", "--p50-kpa", "11", "--width-kpa", "2.4",
                "--beta", "0.75", "--seed", "21", "--offset-s", "7.3", "--drift-ppm", "-380", "--overshoot", "0.12",
                "--noise-levels", "1.5", "--presses", "13", "--slab-mm", "4", "--slab-ior", "1.53"},

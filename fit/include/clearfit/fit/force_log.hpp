@@ -12,6 +12,7 @@
 // releases seen in both, by least squares, with σ). No clap or LED is needed.
 #include <clearfit/geometry/mesh.hpp>
 
+#include <cmath>
 #include <filesystem>
 #include <string>
 #include <vector>
@@ -69,6 +70,8 @@ struct ClockAlignment {
   double correlation = 0;       ///< of the aligned traces
   double second_peak_ratio = 0; ///< next-best correlation peak over the best (ambiguity: close to 1)
   int events = 0;               ///< onsets and releases matched
+  bool trace_fit = false;       ///< refined by the fit of the whole trace around the presses (else: the events' fit)
+  double tau_on_s = NAN, tau_off_s = NAN;  ///< the blanching's time constants the trace fit found (NaN without it)
   double to_gauge(double video_s) const { return (1 + drift) * video_s + offset_s; }
   double to_video(double gauge_s) const { return (gauge_s - offset_s) / (1 + drift); }
 };
