@@ -1,6 +1,7 @@
 // clearfit calibrate: a camera model from board views (mrcal's optimizer), or
 // converted from an OpenCV calibration / an existing .cameramodel.
 #include <clearfit/cli/commands.hpp>
+#include <clearfit/cli/video_views.hpp>
 
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/output_folder.hpp>
@@ -138,12 +139,14 @@ Run add_calibrate(CLI::App& app) {
     std::vector<std::string> images;
     double spacing_mm = 0, focal = 0, uncertainty_distance_mm = 0;
     bool no_uncertainty = false, no_outlier_rejection = false, no_warp = false, no_refine = false;
+    ViewSelectionOptions video;
   };
   auto o = std::make_shared<Opts>();
   CLI::App* sub = app.add_subcommand(
       "calibrate",
       "Camera calibration from board views with mrcal's optimizer (or conversion of an existing model)");
-  sub->add_option("images", o->images, "Board images or folders of images (detected with --board)");
+  sub->add_option("images", o->images,
+                  "Board images, folders of images or videos (detected with --board; from a video the sharp, distinct frames)");
   sub->add_option("--board", o->board, "Board file (clearfit.board/1) describing the printed board");
   sub->add_option("--grid", o->grid, "Corner grid W H (instead of --board, with --corners)")->expected(2);
   sub->add_option("--spacing-mm", o->spacing_mm, "Corner spacing in mm (with --grid)");
@@ -169,6 +172,7 @@ Run add_calibrate(CLI::App& app) {
   sub->add_option("--from-cameramodel", o->from_cameramodel, "Check and rewrite an existing .cameramodel");
   sub->add_option("--out", o->out, "Output camera model (.cameramodel)");
   sub->add_option("--report", o->report, "Calibration report (JSON, schema clearfit.calibration/1)");
+  add_video_options(*sub, o->video);
 
   return [o]() -> int {
     if (o->out.empty()) throw InputError("", "--out", "is required", "e.g. --out camera.cameramodel");
@@ -237,6 +241,8 @@ Run add_calibrate(CLI::App& app) {
     // --- the corners -------------------------------------------------------
     std::vector<BoardObservation> views;
     std::vector<fs::path> image_paths;
+    std::vector<cv::Mat> frames;  // kept from videos, after the image files' views
+    std::vector<std::string> video_lines;
     nlohmann::json inputs;
     if (!o->corners.empty()) {
       if (!o->images.empty()) throw InputError("", "--corners", "give either --corners or images, not both");
@@ -251,16 +257,28 @@ Run add_calibrate(CLI::App& app) {
         throw InputError("", "images", "no board images or --corners were given",
                          "clearfit calibrate --board board.yaml images/ --out camera.cameramodel");
       if (!board) throw InputError("", "--board", "is required to detect the board in images");
-      std::vector<fs::path> in(o->images.begin(), o->images.end());
-      image_paths = list_images(in);
-      std::cerr << "detecting the board in " << image_paths.size() << " images\n";
-      views = detect_boards(image_paths, *board, {}, [](int done, int total) {
-        if (done == total || done % 10 == 0) std::cerr << "  " << done << " / " << total << "\n";
-      });
+      const ViewInputs in = split_view_inputs(o->images);
+      image_paths = in.images;
+      if (!image_paths.empty()) {
+        std::cerr << "detecting the board in " << image_paths.size() << " images\n";
+        views = detect_boards(image_paths, *board, {}, [](int done, int total) {
+          if (done == total || done % 10 == 0) std::cerr << "  " << done << " / " << total << "\n";
+        });
+      }
       inputs = {{"images", o->images}};
+      for (const auto& video : in.videos) {
+        VideoViews v = read_board_video(video, *board, {}, o->video);
+        std::cerr << v.summary() << "\n";
+        for (std::size_t k = 0; k < v.images.size(); ++k) {
+          views.push_back(detect_board(v.images[k], *board, {}, v.names[k]));
+          frames.push_back(v.images[k]);
+        }
+        inputs["videos"].push_back(v.json());
+        video_lines.push_back(v.summary());
+      }
     }
     const auto t0 = std::chrono::steady_clock::now();
-    const bool refine = !image_paths.empty() && !o->no_refine;
+    const bool refine = (!image_paths.empty() || !frames.empty()) && !o->no_refine;
     CalibrationOptions first = opt;
     first.compute_uncertainty = opt.compute_uncertainty && !refine;  // only for the final solve
     CalibrationResult result = calibrate_camera(views, grid, first);
@@ -272,8 +290,10 @@ Run add_calibrate(CLI::App& app) {
       const double first_rms = result.rms_px;
       for (std::size_t k = 0; k < views.size(); ++k) {
         if (!views[k].detected()) continue;
-        const cv::Mat image = cv::imread(image_paths[k].string(), cv::IMREAD_GRAYSCALE);
-        if (image.empty()) throw InputError(image_paths[k].string(), "", "cannot be read as an image");
+        // Image files first, then the frames kept from videos (in memory).
+        const cv::Mat image = k < image_paths.size() ? cv::imread(image_paths[k].string(), cv::IMREAD_GRAYSCALE)
+                                                     : frames[k - image_paths.size()];
+        if (image.empty()) throw InputError(views[k].image, "", "cannot be read as an image");
         views[k] = refine_corners(image, views[k], *board, &result.model);
       }
       opt.seed = result.model;
@@ -306,6 +326,7 @@ Run add_calibrate(CLI::App& app) {
       throw;
     }
     for (const auto& n : result.notes) std::cerr << "note: " << n << "\n";
+    for (const auto& line : video_lines) std::cout << line << "\n";
     print_summary(result, std::cout);
     std::cout << "wrote";
     for (const auto& w : written) std::cout << " " << w;

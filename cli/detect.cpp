@@ -1,5 +1,6 @@
 // clearfit detect: AprilTag board corners of many images -> mrcal's corners.vnl.
 #include <clearfit/cli/commands.hpp>
+#include <clearfit/cli/video_views.hpp>
 
 #include <clearfit/camera/board.hpp>
 #include <clearfit/camera/camera_model.hpp>
@@ -15,12 +16,13 @@ Run add_detect(CLI::App& app) {
     std::string board, out, camera;
     std::vector<std::string> inputs;
     DetectOptions detect;
+    ViewSelectionOptions video;
     bool quiet = false;
   };
   auto o = std::make_shared<Opts>();
   CLI::App* sub = app.add_subcommand(
       "detect", "Detect an AprilTag board in images; write mrcal's corners.vnl (with weights)");
-  sub->add_option("inputs", o->inputs, "Image files and/or folders of images")->required();
+  sub->add_option("inputs", o->inputs, "Image files, folders of images and/or videos (from a video: its sharp, distinct frames)")->required();
   sub->add_option("--board", o->board, "Board file (clearfit.board/1, from `clearfit board --board-file`)")
       ->required();
   sub->add_option(
@@ -42,11 +44,11 @@ Run add_detect(CLI::App& app) {
                   "Reject tags decoded with a smaller decision margin (ambiguous)")
       ->capture_default_str()
       ->check(CLI::NonNegativeNumber);
+  add_video_options(*sub, o->video);
   sub->add_flag("--quiet", o->quiet, "No per-image lines");
   return [o]() {
     const Board board = read_board(o->board);
-    std::vector<std::filesystem::path> inputs(o->inputs.begin(), o->inputs.end());
-    const std::vector<std::filesystem::path> images = list_images(inputs);
+    const ViewInputs inputs = split_view_inputs(o->inputs);
     std::optional<CameraModel> lens;
     if (!o->camera.empty()) lens = read_cameramodel(o->camera);
     std::cerr << "board: " << describe(board) << "\n";
@@ -54,7 +56,21 @@ Run add_detect(CLI::App& app) {
       std::cerr << "\rdetecting: " << done << "/" << total << " images" << (done == total ? "\n" : "")
                 << std::flush;
     };
-    std::vector<BoardObservation> obs = detect_boards(images, board, o->detect, progress);
+    std::vector<BoardObservation> obs;
+    if (!inputs.images.empty()) obs = detect_boards(inputs.images, board, o->detect, progress);
+    // Frames kept from videos follow the image files' views; their pixels stay in memory.
+    const std::size_t files = obs.size();
+    std::vector<cv::Mat> frames;
+    std::vector<std::string> video_lines;
+    for (const auto& video : inputs.videos) {
+      VideoViews v = read_board_video(video, board, o->detect, o->video);
+      std::cerr << v.summary() << "\n";
+      video_lines.push_back(v.summary());
+      for (std::size_t k = 0; k < v.images.size(); ++k) {
+        obs.push_back(detect_board(v.images[k], board, o->detect, v.names[k]));
+        frames.push_back(v.images[k]);
+      }
+    }
     if (lens) {
       for (std::size_t i = 0; i < obs.size(); ++i) {
         if (!obs[i].detected()) continue;
@@ -64,7 +80,8 @@ Run add_detect(CLI::App& app) {
                                ", the camera model " + o->camera + " is " + std::to_string(lens->width) +
                                "x" + std::to_string(lens->height),
                            "use the model of the camera that took it");
-        obs[i] = refine_corners(cv::imread(obs[i].image, cv::IMREAD_GRAYSCALE), obs[i], board, &*lens);
+        const cv::Mat image = i < files ? cv::imread(obs[i].image, cv::IMREAD_GRAYSCALE) : frames[i - files];
+        obs[i] = refine_corners(image, obs[i], board, &*lens);
         progress(static_cast<int>(i + 1), static_cast<int>(obs.size()));
       }
     }
@@ -83,6 +100,7 @@ Run add_detect(CLI::App& app) {
           o->board, "", "the board was found in none of the " + std::to_string(obs.size()) + " images",
           "check the board file against the printed board (family, first id) and the notes above");
     write_corners_vnl(obs, board, o->out);
+    for (const auto& line : video_lines) std::cout << line << "\n";
     std::cout << "board found in " << with << " of " << obs.size() << " images, " << corners << " corners -> "
               << o->out << "\nmrcal: mrcal-calibrate-cameras --corners-cache " << o->out
               << " --corners-cache-has-weights"

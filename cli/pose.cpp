@@ -1,6 +1,7 @@
 // clearfit pose: the part's pose (cam_from_part) from AprilTags on the part's fixture.
 #include <clearfit/cli/commands.hpp>
 #include <clearfit/cli/options.hpp>
+#include <clearfit/cli/video_views.hpp>
 
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/camera/camera_model.hpp>
@@ -12,6 +13,7 @@
 #include <cmath>
 #include <cstdio>
 #include <iostream>
+#include <nlohmann/json.hpp>
 #include <opencv2/imgcodecs.hpp>
 
 namespace clearfit::cli {
@@ -23,11 +25,12 @@ Run add_pose(CLI::App& app) {
     Scene scene;  // --units, as the scene file names it
     SceneFields::Options options;
     DetectOptions detect;
+    ViewSelectionOptions video;
   };
   auto o = std::make_shared<Opts>();
   CLI::App* sub = app.add_subcommand(
       "pose", "The part's pose in the camera frame (cam_from_part) from AprilTags on its fixture");
-  sub->add_option("images", o->images, "Images from one camera pose (files and/or folders)")->required();
+  sub->add_option("images", o->images, "Images or videos from one camera pose (files and/or folders; from a video: its sharpest frames)")->required();
   sub->add_option("--camera", o->camera, "Calibrated camera (.cameramodel)")->required();
   sub->add_option("--layout", o->layout,
                   "Tag layout (clearfit.tag-layout/1): tag ids and corner positions in the part frame, mm")
@@ -42,25 +45,37 @@ Run add_pose(CLI::App& app) {
   sub->add_option("--decimate", o->detect.quad_decimate, "AprilTag quad_decimate")
       ->capture_default_str()
       ->check(CLI::Range(1.0, 8.0));
+  add_video_options(*sub, o->video, false);
   return [o]() {
     check_scene(o->scene, o->options);
     const CameraModel camera = read_cameramodel(o->camera);
     const TagLayout layout = read_tag_layout(o->layout);
-    std::vector<std::filesystem::path> inputs(o->images.begin(), o->images.end());
-    const auto images = list_images(inputs);
-    std::vector<std::vector<DetectedTag>> detections;
-    for (const auto& path : images) {
+    const ViewInputs inputs = split_view_inputs(o->images);
+    std::vector<std::pair<std::string, cv::Mat>> images;
+    for (const auto& path : inputs.images) {
       const cv::Mat img = cv::imread(path.string(), cv::IMREAD_GRAYSCALE);
       if (img.empty()) throw InputError(path.string(), "", "cannot be read as an image");
+      images.emplace_back(path.string(), img);
+    }
+    nlohmann::json videos = nlohmann::json::array();
+    for (const auto& video : inputs.videos) {
+      VideoViews v = read_tag_video(video, layout, o->detect, o->video);
+      std::cerr << v.summary() << "\n";
+      std::cout << v.summary() << "\n";
+      videos.push_back(v.json());
+      for (std::size_t k = 0; k < v.images.size(); ++k) images.emplace_back(v.names[k], v.images[k]);
+    }
+    std::vector<std::vector<DetectedTag>> detections;
+    for (const auto& [path, img] : images) {
       if (img.cols != camera.width || img.rows != camera.height)
-        throw InputError(path.string(), "",
+        throw InputError(path, "",
                          "image is " + std::to_string(img.cols) + "x" + std::to_string(img.rows) +
                              ", the camera model " + std::to_string(camera.width) + "x" +
                              std::to_string(camera.height),
                          "use the model of the camera that took it");
       std::vector<std::string> notes;
       detections.push_back(detect_tags(img, layout.family, o->detect, &camera, &notes));
-      std::cerr << path.string() << ": " << detections.back().size() << " " << layout.family << " tags\n";
+      std::cerr << path << ": " << detections.back().size() << " " << layout.family << " tags\n";
       for (const auto& n : notes) std::cerr << "  " << n << "\n";
     }
     const PartPose pose = solve_part_pose(camera, layout, detections);
@@ -95,7 +110,11 @@ Run add_pose(CLI::App& app) {
       with.cam_from_part = pose.cam_from_part;
       write_cameramodel(with, o->write_camera);
     }
-    if (!o->report.empty()) write_file_atomically(o->report, part_pose_report_json(pose));
+    if (!o->report.empty()) {
+      nlohmann::json report = nlohmann::json::parse(part_pose_report_json(pose));
+      if (!videos.empty()) report["videos"] = videos;
+      write_file_atomically(o->report, report.dump(2) + "\n");
+    }
     return 0;
   };
 }
