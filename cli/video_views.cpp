@@ -14,6 +14,7 @@
 #include <opencv2/imgproc.hpp>
 #include <set>
 #include <sstream>
+#include <unistd.h>
 
 namespace clearfit::cli {
 namespace fs = std::filesystem;
@@ -80,7 +81,12 @@ ViewCandidate frame_candidate(const cv::Mat& grey, std::vector<Eigen::Vector3d> 
       if (static_cast<int>(quad.size()) == group) regions.push_back(quad);
     }
   }
-  if (!regions.empty() && regions.front().size() >= 3) c.blur = measure_edge_blur(grey, regions);
+  if (regions.empty() || regions.front().size() < 3) {
+    // Nothing found: the whole frame's blur tells a blurred board from none (select_views).
+    const double w = grey.cols - 1, h = grey.rows - 1;
+    regions = {{{0, 0}, {w, 0}, {w, h}, {0, h}}};
+  }
+  c.blur = measure_edge_blur(grey, regions);
   return c;
 }
 
@@ -97,6 +103,7 @@ VideoViews read_video_views(const fs::path& video, const MeasureFrame& measure, 
   std::vector<cv::Mat> batch;
   int with_thing = 0;
   auto last = std::chrono::steady_clock::now();
+  const bool tty = ::isatty(2) != 0;
   const std::string total = v.info.frames > 0 ? " / ~" + std::to_string(v.info.frames) : "";
   auto flush = [&](bool end) {
     std::vector<ViewCandidate> out(batch.size());
@@ -108,8 +115,8 @@ VideoViews read_video_views(const fs::path& video, const MeasureFrame& measure, 
     batch.clear();
     const auto now = std::chrono::steady_clock::now();
     if (end || now - last > std::chrono::seconds(1)) {
-      std::cerr << "\r" << video.string() << ": frame " << candidates.size() << total << ", " << thing << " in " << with_thing
-                << (end ? "\n" : "") << std::flush;
+      std::cerr << (tty ? "\r" : "") << video.string() << ": frame " << candidates.size() << total << ", " << thing << " in "
+                << with_thing << (end || !tty ? "\n" : "") << std::flush;
       last = now;
     }
   };
@@ -122,6 +129,8 @@ VideoViews read_video_views(const fs::path& video, const MeasureFrame& measure, 
   v.frames_read = static_cast<int>(candidates.size());
   if (v.frames_read == 0) throw InputError(video.string(), "", "holds no frames", "give a video with the " + thing + " in view");
   v.selection = select_views(candidates, v.info.width, v.info.height, options, distinct);
+  for (auto& c : candidates) c.corners.clear();  // the widths stay for the report
+  v.candidates = std::move(candidates);
   const std::vector<int> used = v.selection.used();
   if (used.empty()) nothing_kept(v, thing);
   // The kept frames' pixels: the video read again (keeping every frame would not fit in memory).
@@ -180,6 +189,13 @@ nlohmann::json VideoViews::json() const {
   nlohmann::json dropped;
   for (ViewVerdict r : {ViewVerdict::blurred, ViewVerdict::duplicate_view, ViewVerdict::no_board, ViewVerdict::too_few_corners, ViewVerdict::over_cap})
     dropped[to_string(r)] = s.count(r);
+  nlohmann::json per_frame = nlohmann::json::array();
+  for (std::size_t k = 0; k < candidates.size() && k < s.verdicts.size(); ++k) {
+    const EdgeBlur& b = candidates[k].blur;
+    per_frame.push_back({{"verdict", to_string(s.verdicts[k])},
+                         {"edge_width_px", b.measured() ? nlohmann::json(b.width_px) : nlohmann::json(nullptr)},
+                         {"best_edge_width_px", b.measured() ? nlohmann::json(b.best_width_px) : nlohmann::json(nullptr)}});
+  }
   return {{"source", source.string()},
           {"codec", info.codec},
           {"lossy", info.lossy},
@@ -192,6 +208,7 @@ nlohmann::json VideoViews::json() const {
           {"sharpest_edge_width_px", s.sharpest_width_px},
           {"blur_limit_px", s.blur_limit_px},
           {"min_corner_shift_px", s.min_shift_px},
+          {"frames", per_frame},
           {"options",
            {{"max_views", options.max_views},
             {"max_blur_ratio", options.max_blur_ratio},

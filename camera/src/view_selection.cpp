@@ -149,7 +149,7 @@ ViewSelection select_views(const std::vector<ViewCandidate>& candidates, int wid
   for (std::size_t k = 0; k < candidates.size(); ++k) {
     const ViewCandidate& c = candidates[k];
     const int n = valid_corners(c);
-    if (n == 0) s.verdicts[k] = ViewVerdict::no_board;
+    if (n == 0) s.verdicts[k] = ViewVerdict::no_board;  // or blurred: decided below
     else if (n < std::max(4.0, options.min_corner_fraction * double(c.corners.size()))) s.verdicts[k] = ViewVerdict::too_few_corners;
     else if (!c.blur.measured()) s.verdicts[k] = ViewVerdict::blurred;  // no edge survived: nothing sharp in it
     else {
@@ -162,6 +162,10 @@ ViewSelection select_views(const std::vector<ViewCandidate>& candidates, int wid
     return s;
   }
   s.blur_limit_px = options.max_blur_ratio * s.sharpest_width_px;
+  // A board blurred enough is not found at all: a frame without corners whose edges are too wide is blurred.
+  for (std::size_t k = 0; k < candidates.size(); ++k)
+    if (s.verdicts[k] == ViewVerdict::no_board && candidates[k].blur.measured() && candidates[k].blur.width_px > s.blur_limit_px)
+      s.verdicts[k] = ViewVerdict::blurred;
   std::erase_if(sharp, [&](int k) {
     const bool blurred = candidates[k].blur.width_px > s.blur_limit_px;
     if (blurred) s.verdicts[k] = ViewVerdict::blurred;

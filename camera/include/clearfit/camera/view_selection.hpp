@@ -57,7 +57,7 @@ struct ViewSelectionOptions {
 
 /// What was measured of one frame: its corners in a fixed layout (the same
 /// number and order in every frame; weight < 0: missing, as BoardObservation)
-/// and its edge blur.
+/// and its edge blur (in the corners' region; without corners, of the whole frame).
 struct ViewCandidate {
   std::vector<Eigen::Vector3d> corners;
   EdgeBlur blur;
@@ -77,7 +77,9 @@ struct ViewSelection {
   std::vector<int> used() const;
 };
 
-/// Picks the views: frames without corners have no board; frames with fewer
+/// Picks the views: frames without corners have no board (unless their blur,
+/// measured over the whole frame, is over the limit below: a board blurred
+/// enough is not found, and the frame is counted blurred); frames with fewer
 /// than max(4, min_corner_fraction * corners) corners have too few; frames whose
 /// edges are wider than max_blur_ratio times the sharpest such frame's are
 /// blurred. Of the rest, the sharpest is kept first, then (with `distinct`)

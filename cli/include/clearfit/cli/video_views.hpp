@@ -34,6 +34,7 @@ struct VideoViews {
   std::vector<int> frames;         ///< indices of the used frames (0-based, decoding order)
   std::vector<std::string> names;  ///< "<video>#<index>": how reports and corners files name them
   std::vector<cv::Mat> images;     ///< their pixels, 8-bit grey
+  std::vector<ViewCandidate> candidates;  ///< what was measured of every frame
   /// {"source", "codec", "frames_read", "used", "dropped": {reason: count}, ...} for the command's report.
   nlohmann::json json() const;
   /// One line for people: frames read, used, dropped per reason.
@@ -46,7 +47,7 @@ using MeasureFrame = std::function<ViewCandidate(const cv::Mat& grey)>;
 /// The candidate of a frame whose corners are `corners` (layout as
 /// ViewCandidate): the edge blur is measured in the hull of all valid corners
 /// (group 0: one board) or in each group of `group` consecutive corners with
-/// all of them valid (group 4: one quad per tag).
+/// all of them valid (group 4: one quad per tag); with no corners, in the whole frame.
 ViewCandidate frame_candidate(const cv::Mat& grey, std::vector<Eigen::Vector3d> corners, int group = 0);
 
 /// Reads `video`, measures every frame, picks the views (select_views with
