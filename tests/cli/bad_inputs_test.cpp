@@ -8,6 +8,7 @@
 // the test fails when they differ (CLEARFIT_WRITE_DOCS=1 rewrites the doc).
 #include "cli_support.hpp"
 
+#include <clearfit/camera/board.hpp>
 #include <clearfit/camera/camera_model.hpp>
 #include <clearfit/geometry/import.hpp>
 #include <clearfit/geometry/shapes.hpp>
@@ -80,6 +81,8 @@ std::vector<Case> catalogue(const std::string& camera_text) {
     for (int k = 1; k <= 8; ++k) csv += std::to_string(k) + ",3," + std::to_string(0.01 * k) + ",," + std::to_string(0.01 * k) + "\n";
     return csv + row;
   };
+  const std::string board = board_to_yaml(make_board({"tag36h11", 3, 2, 20, 20, 0}));
+  const std::string layout = "schema: clearfit.tag-layout/1\ntags:\n  - {id: 3, corners_mm: [[0, 10, 0], [10, 10, 0], [10, 0, 0], [0, 0, 0]]}\n";
   return {
       // ---- meshes (mesh-info reads them as every command does)
       {"mesh", "empty STL", {{"e.stl", ""}}, {"mesh-info", "e.stl"}, {"e.stl", "file is empty"}},
@@ -235,6 +238,15 @@ std::vector<Case> catalogue(const std::string& camera_text) {
       {"output", "calibrate --out under a file", {{"f", "x"}, {"c.vnl", corners("100 100")}},
        {"calibrate", "--grid", "4", "3", "--spacing-mm", "10", "--corners", "c.vnl", "--imagersize", "640", "480", "--out", "f/x.cameramodel"},
        {"f/x.cameramodel", "is a file"}},
+      // ---- videos as board and tag views (detect, calibrate, pose); grey.mkv: 5 uniform grey frames (SetUp)
+      {"video", "a video without the board", {{"grey.mkv", "<shared>"}, {"b.yaml", board}}, {"detect", "--board", "b.yaml", "grey.mkv", "--out", "c.vnl"},
+       {"grey.mkv", "no board found in any of its 5 frames"}},
+      {"video", "a text file named .mp4", {{"t.mp4", "not a video\n"}, {"b.yaml", board}},
+       {"calibrate", "--board", "b.yaml", "t.mp4", "--out", "x.cameramodel"}, {"t.mp4", "cannot be opened as a video"}},
+      {"video", "a zero-byte video", {{"z.mp4", ""}, {"l.yaml", layout}}, {"pose", "z.mp4", "--camera", "cam.cameramodel", "--layout", "l.yaml", "--out", "p.json"},
+       {"z.mp4", "cannot be opened as a video"}},
+      {"video", "a video without the part's tags", {{"grey.mkv", "<shared>"}, {"l.yaml", layout}},
+       {"pose", "grey.mkv", "--camera", "cam.cameramodel", "--layout", "l.yaml", "--out", "p.json"}, {"grey.mkv", "no tags found in any of its 5 frames"}},
       // ---- calibrate-pressure
       {"presses", "empty presses file", {{"p.csv", ""}}, cal_p, {"p.csv"}},
       {"presses", "presses not UTF-8", {{"p.csv", presses("9\xff,3,0.1,,0.1\n")}}, cal_p, {"p.csv", "line 10", "not UTF-8"}},
@@ -285,6 +297,9 @@ class BadInputs : public CliTest {
     CliTest::SetUp();
     setup_part(work());
     fs::copy(shared(), work() / "sim", fs::copy_options::recursive);
+    const std::string grey = "ffmpeg -nostdin -v error -y -f lavfi -i color=c=gray:s=160x120:r=10 -frames:v 5 -c:v ffv1 " +
+                             (work() / "grey.mkv").string() + " > " + (root() / "ffmpeg.log").string() + " 2>&1";
+    if (std::system(grey.c_str()) != 0) throw std::runtime_error("ffmpeg failed (install the ffmpeg package): " + grey);
     fs::create_directories(work() / "one");
     fs::copy(work() / "sim/baseline/frame_00000.png", work() / "one/frame_00000.png");
     fs::create_directories(work() / "mixed");
@@ -331,6 +346,7 @@ TEST_F(BadInputs, EveryCaseExitsTwoNamesTheDefectAndLeavesNothing) {
     std::vector<fs::path> made;
     for (const auto& [name, contents] : c.files) {
       if (fs::exists(work() / name)) continue;  // shared inputs (sim/, one/, mixed/)
+      if (contents == "<shared>") continue;  // made by SetUp
       if (contents == "<dir>") fs::create_directories(work() / name);
       else write_text(work() / name, contents);
       made.push_back(work() / name);
@@ -338,7 +354,7 @@ TEST_F(BadInputs, EveryCaseExitsTwoNamesTheDefectAndLeavesNothing) {
     expect_input_error(c.args, c.must_name);
     for (auto it = made.rbegin(); it != made.rend(); ++it) fs::remove_all(*it);
   }
-  EXPECT_EQ(commands.size(), 8u) << ::testing::PrintToString(commands);
+  EXPECT_EQ(commands.size(), 10u) << ::testing::PrintToString(commands);
   const std::string md = markdown(cases);
   if (const char* w = std::getenv("CLEARFIT_WRITE_DOCS"); w && std::strcmp(w, "1") == 0) write_text(kDoc, md);
   EXPECT_EQ(read_text(kDoc), md) << "docs/bad-inputs.md differs from the table: run this test with CLEARFIT_WRITE_DOCS=1";
