@@ -15,7 +15,9 @@
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include <chrono>
 #include <cstdio>
+#include <fstream>
 #include <random>
 
 namespace clearfit::cli_test {
@@ -34,21 +36,19 @@ CameraModel true_lens() {  // as tests/cli/calibrate_test.cpp's, at 800 x 600
 
 class VideoViewsCli : public CliTest {
  protected:
-  /// Writes `frames` (8-bit grey) as a video: PNG frames through the ffmpeg program (scripts/bootstrap.sh installs it).
+  /// Writes `frames` (8-bit grey, one size) as a video: raw frames through the ffmpeg program (scripts/bootstrap.sh installs it).
   void encode(const std::vector<cv::Mat>& frames, const std::string& video, const std::string& codec_args) {
-    const fs::path dir = root() / ("frames_" + video);
-    fs::create_directories(dir);
-    char name[32];
-    for (std::size_t k = 0; k < frames.size(); ++k) {
-      std::snprintf(name, sizeof name, "f%04zu.png", k);
-      cv::Mat bgr;
-      cv::cvtColor(frames[k], bgr, cv::COLOR_GRAY2BGR);
-      ASSERT_TRUE(cv::imwrite((dir / name).string(), bgr));
+    const fs::path raw = root() / (video + ".raw");
+    {
+      std::ofstream out(raw, std::ios::binary);
+      for (const cv::Mat& f : frames) out.write(reinterpret_cast<const char*>(f.data), static_cast<std::streamsize>(f.total()));
+      ASSERT_TRUE(out.good());
     }
-    const std::string cmd = "ffmpeg -nostdin -v error -y -framerate 10 -i " + (dir / "f%04d.png").string() + " " + codec_args + " " +
-                            (work() / video).string() + " > " + (root() / "ffmpeg.log").string() + " 2>&1";
+    const std::string size = std::to_string(frames.at(0).cols) + "x" + std::to_string(frames.at(0).rows);
+    const std::string cmd = "ffmpeg -nostdin -v error -y -f rawvideo -pix_fmt gray -s " + size + " -framerate 10 -i " + raw.string() + " " +
+                            codec_args + " " + (work() / video).string() + " > " + (root() / "ffmpeg.log").string() + " 2>&1";
     ASSERT_EQ(std::system(cmd.c_str()), 0) << "ffmpeg failed (install the ffmpeg package): " << cmd;
-    fs::remove_all(dir);
+    fs::remove(raw);
   }
 };
 
@@ -75,11 +75,11 @@ std::vector<cv::Mat> board_video(const fs::path& dir, Injected& n) {
   synthesize_views(truth, CalibrationGrid::of(board), o, &poses);
   const RayGrid rays = unproject_image(truth, 1);
   std::uint64_t seed = 1;
-  auto render = [&](const Rigid3& p, double blur = 0) {
+  auto render = [&](const Rigid3& p, double blur = 0, int supersample = 3) {
     RenderOptions ro;
     ro.noise_sigma = 2;
     ro.seed = seed++;
-    ro.supersample = 3;
+    ro.supersample = supersample;
     ro.blur_sigma_px = blur;
     return render_board(board, truth, p, ro, &rays);
   };
@@ -89,16 +89,16 @@ std::vector<cv::Mat> board_video(const fs::path& dir, Injected& n) {
     ++n.views;
     if (k < 5) frames.push_back(render(poses[k])), ++n.repeats;  // the camera paused: same view, new noise
   }
-  for (int k : {3, 7, 11}) frames.push_back(render(poses[k], 2.5)), ++n.blurred;  // out of focus
+  for (int k : {3, 7, 11}) frames.push_back(render(poses[k], 2.5, 2)), ++n.blurred;  // out of focus
   for (int k : {5, 9}) {                                                             // moving: 11 px smears
     cv::Mat smeared;
     const cv::Mat line = k == 5 ? cv::Mat::ones(1, 11, CV_32F) / 11.0 : cv::Mat::eye(11, 11, CV_32F) / 11.0;
-    cv::filter2D(render(poses[k]), smeared, -1, line);
+    cv::filter2D(render(poses[k], 0, 2), smeared, -1, line);
     frames.push_back(smeared), ++n.blurred;
   }
   Rigid3 away = poses[0];
   away.translation.x() += 5000;  // the board out of view
-  for (int k = 0; k < 3; ++k) frames.push_back(render(away)), ++n.no_board;
+  for (int k = 0; k < 3; ++k) frames.push_back(render(away, 0, 1)), ++n.no_board;
   // A few tags in view: the board slid right until 8 to 16 of its corners (less than the quarter
   // min_corner_fraction asks for) remain inside.
   for (double y : {-150.0, -60.0}) {
@@ -110,14 +110,19 @@ std::vector<cv::Mat> board_video(const fs::path& dir, Injected& n) {
       for (const auto& c : true_corners(board, truth, edge, 5)) inside += c.z() > 0;
     }
     EXPECT_TRUE(inside >= 8 && inside <= 16) << inside;
-    frames.push_back(render(edge)), ++n.too_few;
+    frames.push_back(render(edge, 0, 2)), ++n.too_few;
   }
   return frames;
 }
 
 TEST_F(VideoViewsCli, CalibrateFromAVideoKeepsTheSharpDistinctFrames) {
   Injected n;
-  encode(board_video(work(), n), "board.mkv", "-c:v ffv1 -pix_fmt bgr0");
+  const auto t0 = std::chrono::steady_clock::now();
+  const auto frames = board_video(work(), n);
+  const auto t1 = std::chrono::steady_clock::now();
+  encode(frames, "board.mkv", "-c:v ffv1 -pix_fmt bgr0");
+  std::printf("render %.1f s, encode %.1f s (machine load shows here)\n", std::chrono::duration<double>(t1 - t0).count(),
+              std::chrono::duration<double>(std::chrono::steady_clock::now() - t1).count());
   const RunResult r = run_clearfit({"calibrate", "--board", "board.yaml", "board.mkv", "--out", "cam.cameramodel", "--report",
                                     "report.json", "--no-uncertainty"},
                                    work(), root() / "capture", 120);
