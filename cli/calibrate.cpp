@@ -239,10 +239,7 @@ Run add_calibrate(CLI::App& app) {
     if (!o->seed.empty()) opt.seed = read_cameramodel(o->seed);
 
     // --- the corners -------------------------------------------------------
-    std::vector<BoardObservation> views;
-    std::vector<fs::path> image_paths;
-    std::vector<cv::Mat> frames;  // kept from videos, after the image files' views
-    std::vector<std::string> video_lines;
+    BoardViews views;
     nlohmann::json inputs;
     if (!o->corners.empty()) {
       if (!o->images.empty()) throw InputError("", "--corners", "give either --corners or images, not both");
@@ -250,54 +247,34 @@ Run add_calibrate(CLI::App& app) {
         throw InputError("", "--imagersize",
                          "is required with --corners (corners files do not hold the image size)",
                          "e.g. --imagersize 1920 1080");
-      views = read_corners_vnl(o->corners, grid, o->imagersize[0], o->imagersize[1]);
+      views.views = read_corners_vnl(o->corners, grid, o->imagersize[0], o->imagersize[1]);
       inputs = {{"corners", o->corners}};
     } else {
       if (o->images.empty())
         throw InputError("", "images", "no board images or --corners were given",
                          "clearfit calibrate --board board.yaml images/ --out camera.cameramodel");
       if (!board) throw InputError("", "--board", "is required to detect the board in images");
-      const ViewInputs in = split_view_inputs(o->images);
-      image_paths = in.images;
-      if (!image_paths.empty()) {
-        std::cerr << "detecting the board in " << image_paths.size() << " images\n";
-        views = detect_boards(image_paths, *board, {}, [](int done, int total) {
-          if (done == total || done % 10 == 0) std::cerr << "  " << done << " / " << total << "\n";
-        });
-      }
+      views = detect_board_views(o->images, *board, {}, o->video, [](int done, int total) {
+        if (done == total || done % 10 == 0) std::cerr << "  " << done << " / " << total << "\n";
+      });
       inputs = {{"images", o->images}};
-      for (const auto& video : in.videos) {
-        VideoViews v = read_board_video(video, *board, {}, o->video);
-        std::cerr << v.summary() << "\n";
-        for (std::size_t k = 0; k < v.images.size(); ++k) {
-          views.push_back(detect_board(v.images[k], *board, {}, v.names[k]));
-          frames.push_back(v.images[k]);
-        }
-        inputs["videos"].push_back(v.json());
-        video_lines.push_back(v.summary());
-      }
+      if (!views.videos.empty()) inputs["videos"] = views.videos;
     }
     const auto t0 = std::chrono::steady_clock::now();
-    const bool refine = (!image_paths.empty() || !frames.empty()) && !o->no_refine;
+    const bool refine = o->corners.empty() && !o->no_refine;
     CalibrationOptions first = opt;
     first.compute_uncertainty = opt.compute_uncertainty && !refine;  // only for the final solve
-    CalibrationResult result = calibrate_camera(views, grid, first);
+    CalibrationResult result = calibrate_camera(views.views, grid, first);
     nlohmann::json refinement = nullptr;
     if (refine) {
       // Lens-aware corner refinement: edges fitted in undistorted
       // coordinates with the first solution, then solved again from it.
       std::cerr << "refining the corners with the lens model\n";
       const double first_rms = result.rms_px;
-      for (std::size_t k = 0; k < views.size(); ++k) {
-        if (!views[k].detected()) continue;
-        // Image files first, then the frames kept from videos (in memory).
-        const cv::Mat image = k < image_paths.size() ? cv::imread(image_paths[k].string(), cv::IMREAD_GRAYSCALE)
-                                                     : frames[k - image_paths.size()];
-        if (image.empty()) throw InputError(views[k].image, "", "cannot be read as an image");
-        views[k] = refine_corners(image, views[k], *board, &result.model);
-      }
+      for (std::size_t k = 0; k < views.views.size(); ++k)
+        if (views.views[k].detected()) views.views[k] = refine_corners(views.image(k), views.views[k], *board, &result.model);
       opt.seed = result.model;
-      result = calibrate_camera(views, grid, opt);
+      result = calibrate_camera(views.views, grid, opt);
       refinement = {{"first_rms_px", first_rms}, {"refined_rms_px", result.rms_px}};
     }
     const double total_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
@@ -315,9 +292,9 @@ Run add_calibrate(CLI::App& app) {
       }
       if (!o->corners_out.empty()) {
         if (board)
-          write_corners_vnl(views, *board, o->corners_out);
+          write_corners_vnl(views.views, *board, o->corners_out);
         else
-          write_corners_levels_vnl(views, o->corners_out);
+          write_corners_levels_vnl(views.views, o->corners_out);
         written.push_back(o->corners_out);
       }
     } catch (...) {
@@ -326,7 +303,7 @@ Run add_calibrate(CLI::App& app) {
       throw;
     }
     for (const auto& n : result.notes) std::cerr << "note: " << n << "\n";
-    for (const auto& line : video_lines) std::cout << line << "\n";
+    for (const auto& line : views.summaries) std::cout << line << "\n";
     print_summary(result, std::cout);
     std::cout << "wrote";
     for (const auto& w : written) std::cout << " " << w;

@@ -48,7 +48,6 @@ Run add_detect(CLI::App& app) {
   sub->add_flag("--quiet", o->quiet, "No per-image lines");
   return [o]() {
     const Board board = read_board(o->board);
-    const ViewInputs inputs = split_view_inputs(o->inputs);
     std::optional<CameraModel> lens;
     if (!o->camera.empty()) lens = read_cameramodel(o->camera);
     std::cerr << "board: " << describe(board) << "\n";
@@ -56,21 +55,8 @@ Run add_detect(CLI::App& app) {
       std::cerr << "\rdetecting: " << done << "/" << total << " images" << (done == total ? "\n" : "")
                 << std::flush;
     };
-    std::vector<BoardObservation> obs;
-    if (!inputs.images.empty()) obs = detect_boards(inputs.images, board, o->detect, progress);
-    // Frames kept from videos follow the image files' views; their pixels stay in memory.
-    const std::size_t files = obs.size();
-    std::vector<cv::Mat> frames;
-    std::vector<std::string> video_lines;
-    for (const auto& video : inputs.videos) {
-      VideoViews v = read_board_video(video, board, o->detect, o->video);
-      std::cerr << v.summary() << "\n";
-      video_lines.push_back(v.summary());
-      for (std::size_t k = 0; k < v.images.size(); ++k) {
-        obs.push_back(detect_board(v.images[k], board, o->detect, v.names[k]));
-        frames.push_back(v.images[k]);
-      }
-    }
+    BoardViews found = detect_board_views(o->inputs, board, o->detect, o->video, progress);
+    std::vector<BoardObservation>& obs = found.views;
     if (lens) {
       for (std::size_t i = 0; i < obs.size(); ++i) {
         if (!obs[i].detected()) continue;
@@ -80,8 +66,7 @@ Run add_detect(CLI::App& app) {
                                ", the camera model " + o->camera + " is " + std::to_string(lens->width) +
                                "x" + std::to_string(lens->height),
                            "use the model of the camera that took it");
-        const cv::Mat image = i < files ? cv::imread(obs[i].image, cv::IMREAD_GRAYSCALE) : frames[i - files];
-        obs[i] = refine_corners(image, obs[i], board, &*lens);
+        obs[i] = refine_corners(found.image(i), obs[i], board, &*lens);
         progress(static_cast<int>(i + 1), static_cast<int>(obs.size()));
       }
     }
@@ -100,7 +85,7 @@ Run add_detect(CLI::App& app) {
           o->board, "", "the board was found in none of the " + std::to_string(obs.size()) + " images",
           "check the board file against the printed board (family, first id) and the notes above");
     write_corners_vnl(obs, board, o->out);
-    for (const auto& line : video_lines) std::cout << line << "\n";
+    for (const auto& line : found.summaries) std::cout << line << "\n";
     std::cout << "board found in " << with << " of " << obs.size() << " images, " << corners << " corners -> "
               << o->out << "\nmrcal: mrcal-calibrate-cameras --corners-cache " << o->out
               << " --corners-cache-has-weights"

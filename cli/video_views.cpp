@@ -11,6 +11,7 @@
 #include <cctype>
 #include <chrono>
 #include <iostream>
+#include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 #include <set>
 #include <sstream>
@@ -170,6 +171,35 @@ VideoViews read_tag_video(const fs::path& video, const TagLayout& layout, const 
     return frame_candidate(grey, std::move(corners), 4);
   };
   return read_video_views(video, measure, options, false, "tags");
+}
+
+BoardViews detect_board_views(const std::vector<std::string>& inputs, const Board& board, const DetectOptions& detect,
+                              const ViewSelectionOptions& options, const std::function<void(int, int)>& progress) {
+  const ViewInputs in = split_view_inputs(inputs);
+  BoardViews b;
+  if (!in.images.empty()) {
+    std::cerr << "detecting the board in " << in.images.size() << " images\n";
+    b.views = detect_boards(in.images, board, detect, progress);
+  }
+  b.files = b.views.size();
+  for (const auto& video : in.videos) {
+    const VideoViews v = read_board_video(video, board, detect, options);
+    std::cerr << v.summary() << "\n";
+    for (std::size_t k = 0; k < v.images.size(); ++k) {
+      b.views.push_back(detect_board(v.images[k], board, detect, v.names[k]));
+      b.frames.push_back(v.images[k]);
+    }
+    b.videos.push_back(v.json());
+    b.summaries.push_back(v.summary());
+  }
+  return b;
+}
+
+cv::Mat BoardViews::image(std::size_t k) const {
+  if (k >= files) return frames.at(k - files);
+  const cv::Mat img = cv::imread(views.at(k).image, cv::IMREAD_GRAYSCALE);
+  if (img.empty()) throw InputError(views[k].image, "", "cannot be read as an image");
+  return img;
 }
 
 std::string VideoViews::summary() const {

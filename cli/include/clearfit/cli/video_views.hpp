@@ -67,6 +67,20 @@ VideoViews read_board_video(const std::filesystem::path& video, const Board& boa
 VideoViews read_tag_video(const std::filesystem::path& video, const TagLayout& layout, const DetectOptions& detect,
                           const ViewSelectionOptions& options);
 
+/// A board's views in image files and videos: the image files' first (in their
+/// order, detected in parallel), then each video's kept frames.
+struct BoardViews {
+  std::vector<BoardObservation> views;
+  std::size_t files = 0;                 ///< views[0, files) come from image files, the rest from videos
+  std::vector<cv::Mat> frames;           ///< the pixels of views[files, ...) (8-bit grey)
+  nlohmann::json videos = nlohmann::json::array();  ///< VideoViews::json() of each video
+  std::vector<std::string> summaries;    ///< VideoViews::summary() of each video
+  /// The 8-bit grey pixels of views[k] (image files are read again); InputError if unreadable.
+  cv::Mat image(std::size_t k) const;
+};
+BoardViews detect_board_views(const std::vector<std::string>& inputs, const Board& board, const DetectOptions& detect,
+                              const ViewSelectionOptions& options, const std::function<void(int done, int total)>& progress);
+
 /// --max-views, --max-blur-ratio, --min-corner-shift bound to `options` (defaults as ViewSelectionOptions).
 void add_video_options(CLI::App& sub, ViewSelectionOptions& options, bool distinct = true);
 
