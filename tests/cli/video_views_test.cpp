@@ -2,7 +2,7 @@
 // moving in front of the camera, with frames blurred, smeared, repeated, without
 // the board and with too little of it injected on purpose (lossless FFV1, so the
 // intrinsics meet the image test's tolerances); a still fixture filmed as a
-// video gives the pose its image gives; bad videos exit 2.
+// video gives the pose its image gives, and one view to detect; bad videos exit 2.
 #include "cli_support.hpp"
 
 #include <clearfit/camera/board.hpp>
@@ -152,18 +152,9 @@ TEST_F(VideoViewsCli, CalibrateFromAVideoKeepsTheSharpDistinctFrames) {
   EXPECT_LT(report["rms_px"].get<double>(), 0.2);
   EXPECT_LT(worst, 0.25);
 
-  // The cap: 8 frames at most, the rest of the distinct views over it.
-  const RunResult capped = run_clearfit({"detect", "--board", "board.yaml", "board.mkv", "--out", "corners.vnl", "--max-views", "8"},
-                                        work(), root() / "capture", 60);
-  ASSERT_EQ(capped.exit_code, 0) << capped;
-  std::printf("detect --max-views 8: %.1f s\n", capped.seconds);
-  EXPECT_NE(capped.out.find(std::to_string(n.total()) + " frames read, 8 used"), std::string::npos) << capped;
-  EXPECT_NE(capped.out.find("over the cap of 8"), std::string::npos) << capped;
-  EXPECT_NE(capped.out.find("board found in 8 of 8 images"), std::string::npos) << capped;
-  EXPECT_NE(read_text(work() / "corners.vnl").find("board.mkv#"), std::string::npos);
 }
 
-TEST_F(VideoViewsCli, PoseFromAStillVideoIsThePoseOfItsImage) {
+TEST_F(VideoViewsCli, PoseAndDetectFromAStillVideo) {
   const cv::Mat still = cv::imread(kData + "pose_fixture.png", cv::IMREAD_GRAYSCALE);
   ASSERT_FALSE(still.empty());
   std::mt19937 rng(7);
@@ -210,6 +201,22 @@ TEST_F(VideoViewsCli, PoseFromAStillVideoIsThePoseOfItsImage) {
   EXPECT_LT(dr(b, truth), 0.05);
   EXPECT_LT(dt(a, b), 0.1);
   EXPECT_LT(dr(a, b), 0.05);
+  // The cap: the 5 sharpest frames.
+  std::vector<std::string> capped = args("still.mkv", "capped.json");
+  capped.insert(capped.end(), {"--max-views", "5"});
+  const RunResult cap = run(capped);
+  ASSERT_EQ(cap.exit_code, 0) << cap;
+  EXPECT_NE(cap.out.find("13 frames read, 5 used"), std::string::npos) << cap;
+  EXPECT_NE(cap.out.find("3 over the cap of 5"), std::string::npos) << cap;
+  // detect on the same video (the fixture's tags as a board): a still camera gives one view, the rest repeat it.
+  write_board(make_board({"tag36h11", 3, 4, 20, 20, 10}), work() / "fixture.yaml");
+  const RunResult det = run({"detect", "--board", "fixture.yaml", "still.mkv", "--out", "corners.vnl"});
+  ASSERT_EQ(det.exit_code, 0) << det;
+  EXPECT_NE(det.out.find("13 frames read, 1 used; dropped 3 blurred"), std::string::npos) << det;
+  EXPECT_NE(det.out.find("7 duplicate views"), std::string::npos) << det;
+  EXPECT_NE(det.out.find("2 with no board or tags found"), std::string::npos) << det;
+  EXPECT_NE(det.out.find("board found in 1 of 1 images"), std::string::npos) << det;
+  EXPECT_NE(read_text(work() / "corners.vnl").find("still.mkv#"), std::string::npos);
 }
 
 TEST_F(VideoViewsCli, BadVideos) {
