@@ -8,6 +8,7 @@
 #include <yaml-cpp/yaml.h>
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
+#include <unsupported/Eigen/NonLinearOptimization>
 #include <nlohmann/json.hpp>
 #include <opencv2/calib3d.hpp>
 
@@ -50,50 +51,54 @@ Eigen::VectorXd residuals(const CameraModel& cam, const std::vector<Corresponden
   return r;
 }
 
-/// Numeric Jacobian of residuals() w.r.t. (rotation perturbation about the camera axes, translation).
-Eigen::MatrixXd jacobian(const CameraModel& cam, const std::vector<Correspondence>& c,
-                         const Eigen::Matrix3d& R, const Eigen::Vector3d& t) {
-  Eigen::MatrixXd J(2 * c.size(), 6);
-  for (int k = 0; k < 6; ++k) {
-    const double h = k < 3 ? 1e-6 : 1e-4;
-    Eigen::Matrix<double, 6, 1> d = Eigen::Matrix<double, 6, 1>::Zero();
-    d[k] = h;
-    const Eigen::VectorXd plus = residuals(cam, c, exp_so3(d.head<3>()) * R, t + d.tail<3>());
-    const Eigen::VectorXd minus = residuals(cam, c, exp_so3(-d.head<3>()) * R, t - d.tail<3>());
-    J.col(k) = (plus - minus) / (2 * h);
+/// The pose's weighted pixel residuals as Eigen's Levenberg–Marquardt expects them: x = (rotation vector w
+/// applied before R0 about the camera axes, translation t); R = exp(w)·R0. Central-difference Jacobian.
+struct PoseResiduals {
+  using Scalar = double;
+  enum { InputsAtCompileTime = Eigen::Dynamic, ValuesAtCompileTime = Eigen::Dynamic };
+  using InputType = Eigen::VectorXd;
+  using ValueType = Eigen::VectorXd;
+  using JacobianType = Eigen::MatrixXd;
+  const CameraModel* cam;
+  const std::vector<Correspondence>* c;
+  Eigen::Matrix3d R0;
+  int inputs() const { return 6; }
+  int values() const { return static_cast<int>(2 * c->size()); }
+  int operator()(const Eigen::VectorXd& x, Eigen::VectorXd& f) const {
+    f = residuals(*cam, *c, exp_so3(x.head<3>()) * R0, x.tail<3>());
+    if (!f.allFinite()) f.setConstant(1e6);  // behind the camera or off the lens: a large, finite cost
+    return 0;
   }
-  return J;
-}
+  int df(const Eigen::VectorXd& x, Eigen::MatrixXd& jac) const {
+    Eigen::VectorXd plus(values()), minus(values());
+    for (int k = 0; k < 6; ++k) {
+      const double h = k < 3 ? 1e-6 : 1e-4;
+      Eigen::VectorXd d = Eigen::VectorXd::Zero(6);
+      d[k] = h;
+      (*this)(x + d, plus), (*this)(x - d, minus);
+      jac.col(k) = (plus - minus) / (2 * h);
+    }
+    return 0;
+  }
+};
 
-/// Levenberg–Marquardt on the weighted reprojection error.
+/// Levenberg–Marquardt (Eigen's) on the weighted reprojection error; keeps the start if it does not improve.
 void refine(const CameraModel& cam, const std::vector<Correspondence>& c, Eigen::Matrix3d& R,
             Eigen::Vector3d& t, int max_iterations) {
-  Eigen::VectorXd r = residuals(cam, c, R, t);
-  double cost = r.allFinite() ? r.squaredNorm() : INFINITY, lambda = 1e-3;
-  for (int it = 0; it < max_iterations; ++it) {
-    const Eigen::MatrixXd J = jacobian(cam, c, R, t);
-    if (!J.allFinite()) break;
-    const Eigen::Matrix<double, 6, 6> A = J.transpose() * J;
-    const Eigen::Matrix<double, 6, 1> g = J.transpose() * r;
-    bool improved = false;
-    for (int tries = 0; tries < 10 && !improved; ++tries) {
-      Eigen::Matrix<double, 6, 6> Ad = A;
-      Ad.diagonal() += lambda * A.diagonal().cwiseMax(1e-12);
-      const Eigen::Matrix<double, 6, 1> step = -Ad.ldlt().solve(g);
-      const Eigen::Matrix3d R2 = exp_so3(step.head<3>()) * R;
-      const Eigen::Vector3d t2 = t + step.tail<3>();
-      const Eigen::VectorXd r2 = residuals(cam, c, R2, t2);
-      const double cost2 = r2.allFinite() ? r2.squaredNorm() : INFINITY;
-      if (cost2 < cost) {
-        const bool converged = cost - cost2 < 1e-12 * cost + 1e-18 || step.norm() < 1e-12;
-        R = R2, t = t2, r = r2, cost = cost2, lambda = std::max(lambda / 10, 1e-9), improved = true;
-        if (converged) return;
-      } else {
-        lambda *= 10;
-      }
-    }
-    if (!improved) return;
-  }
+  PoseResiduals f{&cam, &c, R};
+  Eigen::VectorXd x(6), r0(f.values()), r1(f.values());
+  x << 0, 0, 0, t;
+  f(x, r0);
+  Eigen::LevenbergMarquardt<PoseResiduals> lm(f);
+  lm.parameters.maxfev = std::max(1, max_iterations) * 10;
+  lm.parameters.xtol = 1e-14;
+  lm.parameters.ftol = 1e-14;
+  lm.minimize(x);
+  if (!x.allFinite()) return;
+  f(x, r1);
+  if (!(r1.squaredNorm() < r0.squaredNorm())) return;
+  R = exp_so3(x.head<3>()) * f.R0;
+  t = x.tail<3>();
 }
 
 }  // namespace
@@ -272,7 +277,11 @@ PartPose solve_part_pose(const CameraModel& camera, const TagLayout& layout,
   const Eigen::VectorXd r = residuals(camera, corr, R, t);
   if (!r.allFinite())
     throw InputError(file, "tags", "the solved pose puts corners behind the camera", "check the layout");
-  const Eigen::MatrixXd J = jacobian(camera, corr, R, t);
+  const PoseResiduals at_pose{&camera, &corr, R};  // the Jacobian about the solution (w = 0)
+  Eigen::VectorXd x0(6);
+  x0 << 0, 0, 0, t;
+  Eigen::MatrixXd J(at_pose.values(), 6);
+  at_pose.df(x0, J);
   double wsum = 0;
   for (const auto& c : corr) wsum += c.weight * c.weight;
   pose.cam_from_part.rotation = R;

@@ -5,6 +5,7 @@
 #include <clearfit/fit/pressure_model.hpp>
 
 #include <Eigen/Dense>
+#include <unsupported/Eigen/NonLinearOptimization>
 #include <tbb/parallel_for.h>
 
 #include <algorithm>
@@ -236,59 +237,53 @@ void PressureFitOptions::validate() const {
 
 namespace {
 
-// Weighted Levenberg–Marquardt for the logistic on θ = (ln y_max, p50, ln w).
-// Returns the iterations used; `converged` set when the step or the cost
-// change became negligible.
-int levenberg_marquardt(const std::vector<double>& p, const std::vector<double>& y, const std::vector<double>& wt,
-                        LogisticParams& m, int max_iterations, bool* converged) {
-  const int n = static_cast<int>(p.size());
-  auto cost_of = [&](const LogisticParams& q) {
-    double c = 0;
-    for (int i = 0; i < n; ++i) {
-      const double r = y[i] - logistic_signal(q, p[i]);
-      c += wt[i] * r * r;
-    }
-    return std::isfinite(c) ? c : std::numeric_limits<double>::infinity();
-  };
-  double cost = cost_of(m), lambda = 1e-3;
-  *converged = false;
-  int it = 0;
-  for (; it < max_iterations; ++it) {
-    Eigen::Matrix3d JtJ = Eigen::Matrix3d::Zero();
-    Eigen::Vector3d Jtr = Eigen::Vector3d::Zero();
-    for (int i = 0; i < n; ++i) {
-      Eigen::Vector3d g = logistic_gradient(m, p[i]);
+// The logistic's weighted residuals √w·(y − f(p; θ)) on θ = (ln y_max, p50, ln w), with the analytic Jacobian,
+// as Eigen's LevenbergMarquardt expects them (it minimises ½‖f‖²).
+struct LogisticResiduals {
+  using Scalar = double;
+  enum { InputsAtCompileTime = Eigen::Dynamic, ValuesAtCompileTime = Eigen::Dynamic };
+  using InputType = Eigen::VectorXd;
+  using ValueType = Eigen::VectorXd;
+  using JacobianType = Eigen::MatrixXd;
+  const std::vector<double>*p, *y, *wt;
+  int inputs() const { return 3; }
+  int values() const { return static_cast<int>(p->size()); }
+  static LogisticParams params(const Eigen::VectorXd& x) {
+    return {std::exp(std::clamp(x[0], -700.0, 700.0)), x[1], std::exp(std::clamp(x[2], -700.0, 700.0))};
+  }
+  int operator()(const Eigen::VectorXd& x, Eigen::VectorXd& f) const {
+    const LogisticParams m = params(x);
+    for (std::size_t i = 0; i < p->size(); ++i) f[Eigen::Index(i)] = std::sqrt((*wt)[i]) * ((*y)[i] - logistic_signal(m, (*p)[i]));
+    return 0;
+  }
+  int df(const Eigen::VectorXd& x, Eigen::MatrixXd& jac) const {
+    const LogisticParams m = params(x);
+    for (std::size_t i = 0; i < p->size(); ++i) {
+      Eigen::Vector3d g = logistic_gradient(m, (*p)[i]);
       g[0] *= m.y_max;      // ∂/∂ ln y_max
       g[2] *= m.width_kpa;  // ∂/∂ ln w
-      const double r = y[i] - logistic_signal(m, p[i]);
-      JtJ += wt[i] * g * g.transpose();
-      Jtr += wt[i] * g * r;
+      jac.row(Eigen::Index(i)) = -std::sqrt((*wt)[i]) * g.transpose();
     }
-    bool accepted = false;
-    for (int tries = 0; tries < 30 && !accepted; ++tries) {
-      Eigen::Matrix3d A = JtJ;
-      A.diagonal() += lambda * JtJ.diagonal().cwiseMax(1e-30);
-      const Eigen::Vector3d step = A.ldlt().solve(Jtr);
-      const LogisticParams trial{m.y_max * std::exp(std::clamp(step[0], -5.0, 5.0)), m.p50_kpa + step[1],
-                                 m.width_kpa * std::exp(std::clamp(step[2], -5.0, 5.0))};
-      const double c = step.allFinite() ? cost_of(trial) : std::numeric_limits<double>::infinity();
-      if (c <= cost) {
-        const double rel = (cost - c) / std::max(cost, 1e-300);
-        const bool small_step = std::abs(step[0]) < 1e-10 && std::abs(step[2]) < 1e-10 &&
-                                std::abs(step[1]) < 1e-10 * std::max(1.0, std::abs(m.p50_kpa));
-        m = trial;
-        cost = c;
-        lambda = std::max(lambda / 3, 1e-12);
-        accepted = true;
-        if (small_step || rel < 1e-14) *converged = true;
-      } else {
-        lambda *= 4;
-      }
-    }
-    if (!accepted) *converged = true;  // no descent direction left: a minimum within precision
-    if (*converged) return it + 1;
+    return 0;
   }
-  return it;
+};
+
+// Weighted least squares of the logistic from `m` (Eigen's Levenberg–Marquardt). Returns the iterations used;
+// `converged` unless the evaluation budget ran out or the parameters left the finite numbers.
+int levenberg_marquardt(const std::vector<double>& p, const std::vector<double>& y, const std::vector<double>& wt,
+                        LogisticParams& m, int max_iterations, bool* converged) {
+  LogisticResiduals f{&p, &y, &wt};
+  Eigen::LevenbergMarquardt<LogisticResiduals> lm(f);
+  lm.parameters.maxfev = 20 * max_iterations;
+  lm.parameters.xtol = 1e-12;
+  lm.parameters.ftol = 1e-14;
+  Eigen::VectorXd x(3);
+  x << std::log(m.y_max), m.p50_kpa, std::log(m.width_kpa);
+  const Eigen::LevenbergMarquardtSpace::Status status = lm.minimize(x);
+  *converged = x.allFinite() && status != Eigen::LevenbergMarquardtSpace::TooManyFunctionEvaluation &&
+               status != Eigen::LevenbergMarquardtSpace::ImproperInputParameters;
+  if (x.allFinite()) m = LogisticResiduals::params(x);
+  return static_cast<int>(lm.iter);
 }
 
 // ψ(u) and ψ'(u) of the loss, u = residual / scale.
