@@ -354,68 +354,78 @@ std::vector<double> robust_weights(const std::vector<double>& r, double scale, R
 
 }  // namespace
 
-PressureFitResult fit_pressure_calibration(const std::vector<CalibrationPress>& presses, const PressureFitOptions& options) {
-  options.validate();
-  const std::string& src = options.source;
-  const int n = static_cast<int>(presses.size());
-  std::vector<double> p(n), y(n);
+namespace {
+
+/// The presses as numbers, checked, with their distinct levels.
+struct FitData {
+  std::string src;
+  int n = 0;
+  std::vector<double> p, y;
+  double p_min = 0, p_max = 0, ss_tot = 0;
+  std::vector<std::vector<int>> levels;  ///< indices of the presses at each distinct pressure, ascending
+};
+
+FitData fit_data(const std::vector<CalibrationPress>& presses, const std::string& src) {
+  FitData d;
+  d.src = src;
+  const int n = d.n = static_cast<int>(presses.size());
+  d.p.resize(n), d.y.resize(n);
   for (int i = 0; i < n; ++i) {
     const CalibrationPress& c = presses[i];
     const std::string where = c.line ? "line " + std::to_string(c.line) : "trial '" + c.trial + "'";
     if (!std::isfinite(c.mean_pressure_kpa) || c.mean_pressure_kpa < 0 || !std::isfinite(c.signal))
       throw InputError(src, where, "needs a finite mean pressure >= 0 kPa and a finite signal");
-    p[i] = c.mean_pressure_kpa;
-    y[i] = c.signal;
+    d.p[i] = c.mean_pressure_kpa;
+    d.y[i] = c.signal;
   }
   if (n < 4)
     throw InputError(src, "presses", "found " + std::to_string(n) + " presses; the logistic model has 3 parameters and needs at least 4",
                      "the protocol: 8-10 pressure levels over 0-30 kPa, 3 repetitions each");
-  const auto [pmin_it, pmax_it] = std::minmax_element(p.begin(), p.end());
-  const double p_min = *pmin_it, p_max = *pmax_it;
-
+  const auto [pmin_it, pmax_it] = std::minmax_element(d.p.begin(), d.p.end());
+  d.p_min = *pmin_it, d.p_max = *pmax_it;
   // Distinct pressure levels: sorted pressures split where the gap exceeds max(0.5 kPa, 5 %).
   std::vector<int> order(n);
   std::iota(order.begin(), order.end(), 0);
-  std::sort(order.begin(), order.end(), [&](int a, int b) { return p[a] < p[b]; });
-  std::vector<std::vector<int>> levels{{order[0]}};
+  std::sort(order.begin(), order.end(), [&](int a, int b) { return d.p[a] < d.p[b]; });
+  d.levels = {{order[0]}};
   for (int k = 1; k < n; ++k) {
-    const double prev = p[levels.back().back()], cur = p[order[k]];
-    if (cur - prev > std::max(0.5, 0.05 * cur)) levels.emplace_back();
-    levels.back().push_back(order[k]);
+    const double prev = d.p[d.levels.back().back()], cur = d.p[order[k]];
+    if (cur - prev > std::max(0.5, 0.05 * cur)) d.levels.emplace_back();
+    d.levels.back().push_back(order[k]);
   }
-  if (levels.size() < 3)
-    throw InputError(src, "presses", "the presses cover only " + std::to_string(levels.size()) +
+  if (d.levels.size() < 3)
+    throw InputError(src, "presses", "the presses cover only " + std::to_string(d.levels.size()) +
                      " distinct pressure level(s); a calibration needs at least 3 (better 8-10)",
                      "press at 8-10 levels over 0-30 kPa mean pressure");
+  const double ybar = std::accumulate(d.y.begin(), d.y.end(), 0.0) / n;
+  for (double v : d.y) d.ss_tot += (v - ybar) * (v - ybar);
+  return d;
+}
 
-  PressureFitResult res;
-  res.levels = static_cast<int>(levels.size());
-
-  // The study's linear model, ordinary least squares.
-  const double ybar = std::accumulate(y.begin(), y.end(), 0.0) / n;
-  double ss_tot = 0;
-  for (double v : y) ss_tot += (v - ybar) * (v - ybar);
-  {
-    Eigen::MatrixXd X(n, 2);
-    Eigen::VectorXd Y(n);
-    for (int i = 0; i < n; ++i) {
-      X(i, 0) = 1.0;
-      X(i, 1) = p[i];
-      Y[i] = y[i];
-    }
-    const Eigen::Matrix2d XtX = X.transpose() * X;
-    const Eigen::Vector2d ab = XtX.ldlt().solve(X.transpose() * Y);
-    const double ssr = (Y - X * ab).squaredNorm();
-    const Eigen::Matrix2d cov = ssr / std::max(1, n - 2) * XtX.inverse();
-    res.linear = {ab[0], ab[1], std::sqrt(cov(0, 0)), std::sqrt(cov(1, 1)), ss_tot > 0 ? 1 - ssr / ss_tot : kNaN};
-  }
-  if (!(res.linear.slope_per_kpa > 0))
-    throw InputError(src, "signal", "does not rise with pressure (linear slope " + fmt(res.linear.slope_per_kpa) +
+/// The study's linear model, ordinary least squares; refuses a signal that does not rise.
+LinearFit linear_fit(const FitData& d) {
+  const int n = d.n;
+  Eigen::MatrixXd X(n, 2);
+  Eigen::VectorXd Y(n);
+  for (int i = 0; i < n; ++i) X(i, 0) = 1.0, X(i, 1) = d.p[i], Y[i] = d.y[i];
+  const Eigen::Matrix2d XtX = X.transpose() * X;
+  const Eigen::Vector2d ab = XtX.ldlt().solve(X.transpose() * Y);
+  const double ssr = (Y - X * ab).squaredNorm();
+  const Eigen::Matrix2d cov = ssr / std::max(1, n - 2) * XtX.inverse();
+  const LinearFit f{ab[0], ab[1], std::sqrt(cov(0, 0)), std::sqrt(cov(1, 1)), d.ss_tot > 0 ? 1 - ssr / d.ss_tot : kNaN};
+  if (!(f.slope_per_kpa > 0))
+    throw InputError(d.src, "signal", "does not rise with pressure (linear slope " + fmt(f.slope_per_kpa) +
                      " per kPa); blanching makes the green signal grow with pressure",
                      "check the signal's sign (ln of contact over baseline) and the pressure column");
+  return f;
+}
 
-  // Initial guess: coarse grid over (p50, w), y_max solved linearly, least absolute deviations.
-  const double span = std::max(p_max, 1e-6);
+/// Initial guess: coarse grid over (p50, w), y_max solved linearly, least absolute deviations.
+LogisticParams logistic_start(const FitData& d) {
+  const int n = d.n;
+  const std::vector<double>& p = d.p;
+  const std::vector<double>& y = d.y;
+  const double span = std::max(d.p_max, 1e-6);
   LogisticParams m{};
   double best = std::numeric_limits<double>::infinity();
   for (int a = 0; a < 40; ++a)
@@ -434,10 +444,26 @@ PressureFitResult fit_pressure_calibration(const std::vector<CalibrationPress>& 
       if (c < best) best = c, m = q;
     }
   if (!(m.y_max > 0))
-    throw InputError(src, "signal", "does not follow a rising curve through 0 at 0 kPa",
+    throw InputError(d.src, "signal", "does not follow a rising curve through 0 at 0 kPa",
                      "check the signal's sign and that the presses span the blanching range");
 
-  // IRLS: Huber (scale re-estimated each round), then Tukey with the scale fixed.
+  return m;
+}
+
+/// The robust fit's state: parameters, weights, residuals and the loss's scale.
+struct RobustFit {
+  LogisticParams m;
+  std::vector<double> wt, r;
+  double scale = 0;
+};
+
+/// IRLS: Huber (scale re-estimated each round), then Tukey with the scale fixed. Adds to res.iterations and
+/// clears res.converged when a stage does not settle.
+RobustFit robust_logistic(const FitData& d, const PressureFitOptions& options, LogisticParams start, PressureFitResult& res) {
+  const int n = d.n;
+  const std::vector<double>& p = d.p;
+  const std::vector<double>& y = d.y;
+  LogisticParams m = start;
   std::vector<double> wt(n, 1.0), r(n);
   auto residuals = [&] {
     for (int i = 0; i < n; ++i) r[i] = y[i] - logistic_signal(m, p[i]);
@@ -478,62 +504,69 @@ PressureFitResult fit_pressure_calibration(const std::vector<CalibrationPress>& 
   residuals();
   wt = robust_weights(r, final_scale, options.loss);  // consistent with the final parameters
 
-  // Covariance (Huber 1981, §7.6): s² · [Σψ²/(n − 3)] / mean ψ' · (Σ ψ' g gᵀ)⁻¹ with
-  // u = r/s; for plain least squares σ̂² (JᵀJ)⁻¹. Points the loss rejects drop out.
-  const RobustLoss loss = options.loss;
-  const double s = loss == RobustLoss::none ? 1.0 : final_scale;
+  return {m, wt, r, final_scale};
+}
+
+/// Covariance (Huber 1981, §7.6): s² · [Σψ²/(n − 3)] / mean ψ' · (Σ ψ' g gᵀ)⁻¹ with u = r/s; for plain least
+/// squares σ̂² (JᵀJ)⁻¹. Points the loss rejects drop out.
+Eigen::Matrix3d robust_covariance(const FitData& d, const RobustFit& f, RobustLoss loss) {
+  const double s = loss == RobustLoss::none ? 1.0 : f.scale;
   Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
   double psi2 = 0, dpsi_sum = 0;
-  for (int i = 0; i < n; ++i) {
-    const double u = r[i] / s, d1 = std::max(0.0, dpsi(u, loss));
-    const Eigen::Vector3d g = logistic_gradient(m, p[i]);
+  for (int i = 0; i < d.n; ++i) {
+    const double u = f.r[i] / s, d1 = std::max(0.0, dpsi(u, loss));
+    const Eigen::Vector3d g = logistic_gradient(f.m, d.p[i]);
     A += d1 * g * g.transpose();
     psi2 += psi(u, loss) * psi(u, loss);
     dpsi_sum += d1;
   }
-  const double factor = s * s * psi2 / std::max(1.0, n - 3.0) / std::max(dpsi_sum / n, 1e-12);
+  const double factor = s * s * psi2 / std::max(1.0, d.n - 3.0) / std::max(dpsi_sum / d.n, 1e-12);
   const Eigen::Matrix3d cov_raw = factor * A.ldlt().solve(Eigen::Matrix3d::Identity());
-  const Eigen::Matrix3d cov_logistic = 0.5 * (cov_raw + cov_raw.transpose());
-  const double noise_sigma = psi_scale(r, s, loss);
-  double ssr_logistic = 0;
-  for (int i = 0; i < n; ++i) ssr_logistic += r[i] * r[i];
-  res.logistic = m;
-  res.logistic_se = cov_logistic.diagonal().cwiseMax(0.0).cwiseSqrt();
-  res.r2_logistic = ss_tot > 0 ? 1 - ssr_logistic / ss_tot : kNaN;
+  return 0.5 * (cov_raw + cov_raw.transpose());
+}
 
+/// The calibration of the model the options choose (the linear one refitted for its own noise and covariance).
+void fill_calibration(const FitData& d, const PressureFitOptions& options, const RobustFit& f, const Eigen::Matrix3d& cov_logistic,
+                      PressureFitResult& res) {
   PressureCalibration& cal = res.calibration;
   cal.model = options.model;
   cal.person = options.person;
   cal.camera_hash = options.camera_hash;
   cal.created = utc_now_iso8601();
-  cal.p_min_kpa = p_min;
-  cal.p_max_kpa = p_max;
-  cal.presses = n;
+  cal.p_min_kpa = d.p_min;
+  cal.p_max_kpa = d.p_max;
+  cal.presses = d.n;
   cal.r2_linear = res.linear.r2;
-  cal.noise_sigma = noise_sigma;
+  cal.noise_sigma = psi_scale(f.r, options.loss == RobustLoss::none ? 1.0 : f.scale, options.loss);
   if (cal.model == PressureModelKind::logistic) {
-    cal.logistic = m;
+    cal.logistic = f.m;
     cal.covariance = cov_logistic;
     cal.r2 = res.r2_logistic;
-  } else {
-    cal.intercept = res.linear.intercept;
-    cal.slope_per_kpa = res.linear.slope_per_kpa;
-    double ssr = 0;
-    Eigen::Matrix2d XtX = Eigen::Matrix2d::Zero();
-    for (int i = 0; i < n; ++i) {
-      const double e = y[i] - cal.signal(p[i]);
-      ssr += e * e;
-      XtX += Eigen::Vector2d(1, p[i]) * Eigen::RowVector2d(1, p[i]);
-    }
-    cal.noise_sigma = std::sqrt(ssr / std::max(1, n - 2));
-    const Eigen::Matrix2d c2 = ssr / std::max(1, n - 2) * XtX.inverse();
-    cal.covariance.topLeftCorner<2, 2>() = 0.5 * (c2 + c2.transpose());
-    cal.r2 = res.linear.r2;
+    return;
   }
+  cal.intercept = res.linear.intercept;
+  cal.slope_per_kpa = res.linear.slope_per_kpa;
+  double ssr = 0;
+  Eigen::Matrix2d XtX = Eigen::Matrix2d::Zero();
+  for (int i = 0; i < d.n; ++i) {
+    const double e = d.y[i] - cal.signal(d.p[i]);
+    ssr += e * e;
+    XtX += Eigen::Vector2d(1, d.p[i]) * Eigen::RowVector2d(1, d.p[i]);
+  }
+  cal.noise_sigma = std::sqrt(ssr / std::max(1, d.n - 2));
+  const Eigen::Matrix2d c2 = ssr / std::max(1, d.n - 2) * XtX.inverse();
+  cal.covariance.topLeftCorner<2, 2>() = 0.5 * (c2 + c2.transpose());
+  cal.r2 = res.linear.r2;
+}
 
-  // Residuals per trial, and the RMSE in kPa over the presses inside the
-  // invertible range: known pressure between the pressures of the detection
-  // and saturation signals, and a signal that inverts without a flag.
+/// Residuals per trial, and the RMSE in kPa over the presses inside the invertible range: known pressure
+/// between the pressures of the detection and saturation signals, and a signal that inverts without a flag.
+void press_residuals(const FitData& d, const std::vector<CalibrationPress>& presses, const std::vector<double>& wt,
+                     PressureFitResult& res) {
+  const int n = d.n;
+  const std::vector<double>& p = d.p;
+  const std::vector<double>& y = d.y;
+  PressureCalibration& cal = res.calibration;
   const PressureEstimate det = cal.invert(cal.detection_signal(), 0.0);
   const double p_lo = det.status == PressureStatus::ok ? det.pressure_kpa : det.bound_kpa;
   const double p_hi = cal.invert(std::numeric_limits<double>::max()).bound_kpa;
@@ -562,7 +595,18 @@ PressureFitResult fit_pressure_calibration(const std::vector<CalibrationPress>& 
   res.rmse_kpa_inliers = inliers ? std::sqrt(se_inliers / inliers) : kNaN;
   cal.rmse_kpa = res.rmse_kpa;
 
-  // Warnings.
+}
+
+/// Warnings: no convergence, too few levels, nothing near p50, no saturation, non-monotone levels, outliers.
+void fit_warnings(const FitData& d, const std::vector<CalibrationPress>& presses, const RobustFit& f, PressureFitResult& res) {
+  const int n = d.n;
+  const std::vector<double>& p = d.p;
+  const std::vector<double>& y = d.y;
+  const std::vector<double>& wt = f.wt;
+  const LogisticParams& m = f.m;
+  const double p_min = d.p_min, p_max = d.p_max;
+  const auto& levels = d.levels;
+  const PressureCalibration& cal = res.calibration;
   auto& warn = res.warnings;
   if (!res.converged) warn.push_back("the logistic fit did not converge; its parameters are the last iterate");
   if (res.levels < 6)
@@ -604,6 +648,26 @@ PressureFitResult fit_pressure_calibration(const std::vector<CalibrationPress>& 
     warn.push_back(std::to_string(n_out) + " press(es) down-weighted as outliers by the robust fit: trial " + outliers);
   if (m.p50_kpa < p_min || m.p50_kpa > p_max)
     warn.push_back("p50 = " + fmt(m.p50_kpa) + " kPa lies outside the pressed range [" + fmt(p_min) + ", " + fmt(p_max) + "] kPa");
+}
+
+}  // namespace
+
+PressureFitResult fit_pressure_calibration(const std::vector<CalibrationPress>& presses, const PressureFitOptions& options) {
+  options.validate();
+  const FitData d = fit_data(presses, options.source);
+  PressureFitResult res;
+  res.levels = static_cast<int>(d.levels.size());
+  res.linear = linear_fit(d);
+  const RobustFit f = robust_logistic(d, options, logistic_start(d), res);
+  const Eigen::Matrix3d cov_logistic = robust_covariance(d, f, options.loss);
+  double ssr_logistic = 0;
+  for (double v : f.r) ssr_logistic += v * v;
+  res.logistic = f.m;
+  res.logistic_se = cov_logistic.diagonal().cwiseMax(0.0).cwiseSqrt();
+  res.r2_logistic = d.ss_tot > 0 ? 1 - ssr_logistic / d.ss_tot : kNaN;
+  fill_calibration(d, options, f, cov_logistic, res);
+  press_residuals(d, presses, f.wt, res);
+  fit_warnings(d, presses, f, res);
   return res;
 }
 
