@@ -217,19 +217,17 @@ double projection_difference_px(const CameraModel& a, const CameraModel& b, cons
   return (b.project(ray) - q).norm();
 }
 
-CalibrationResult calibrate_camera(const std::vector<BoardObservation>& views, const CalibrationGrid& grid,
-                                   const CalibrationOptions& options) {
-  const auto t0 = Clock::now();
-  check_calibration_lensmodel(options.lensmodel);
-  options.validate();
-  grid.validate();
-  CalibrationResult res;
-  const auto progress = [&](const std::string& s) {
-    if (options.progress) options.progress(s);
-  };
-  const std::size_t per_view = static_cast<std::size_t>(grid.width) * grid.height;
+namespace {
 
-  // --- input checks -------------------------------------------------------
+/// The views with enough corners (checked against the grid and each other); notes for the ones skipped.
+struct UsableViews {
+  std::vector<const BoardObservation*> used;
+  std::vector<int> index;  ///< into the given views
+};
+
+UsableViews usable_views(const std::vector<BoardObservation>& views, const CalibrationGrid& grid, const CalibrationOptions& options,
+                         CalibrationResult& res) {
+  const std::size_t per_view = static_cast<std::size_t>(grid.width) * grid.height;
   if (views.empty())
     throw InputError("", "views", "no board views were given",
                      "pass images or a corners file with detections");
@@ -294,11 +292,12 @@ CalibrationResult calibrate_camera(const std::vector<BoardObservation>& views, c
     res.warnings.push_back("only " + std::to_string(used.size()) + " usable views; use " +
                            std::to_string(options.recommended_views) +
                            " or more (tilted boards at several distances, reaching the image corners)");
-  const int W = used.front()->width, H = used.front()->height;
+  return {used, used_index};
+}
 
-  // --- seeding ------------------------------------------------------------
-  const std::vector<std::string> chain = lensmodel_chain(options.lensmodel);
-  for (std::size_t k = 0; k < chain.size(); ++k) res.lensmodel_chain += (k ? " -> " : "") + chain[k];
+/// The focal length to start from: the seed model's, the option's, the board homographies', or a field of view.
+double seed_focal(const std::vector<const BoardObservation*>& used, const CalibrationGrid& grid, const CalibrationOptions& options,
+                  int W, int H, CalibrationResult& res) {
   double f = 0;
   if (options.seed) {
     if (options.seed->lensmodel != options.lensmodel || options.seed->width != W || options.seed->height != H)
@@ -320,8 +319,22 @@ CalibrationResult calibrate_camera(const std::vector<BoardObservation>& views, c
         "started from a " +
         fmt(options.fallback_fov_deg) + " degree field of view");
   }
-  res.focal_seed_px = f;
 
+  res.focal_seed_px = f;
+  return f;
+}
+
+/// The mrcal problem with every view that PnP could pose; frame_view maps its frames to the given views.
+struct PosedProblem {
+  detail::BoardProblem problem;
+  std::vector<int> frame_view;
+  int given_missing = 0;  ///< corners missing in the input (not outliers)
+};
+
+PosedProblem posed_problem(const UsableViews& u, const CalibrationGrid& grid, const CalibrationOptions& options,
+                           const std::vector<std::string>& chain, double f, int W, int H, CalibrationResult& res) {
+  const std::vector<const BoardObservation*>& used = u.used;
+  const std::vector<int>& used_index = u.index;
   detail::BoardProblem problem;
   problem.imager_width = W;
   problem.imager_height = H;
@@ -359,7 +372,21 @@ CalibrationResult calibrate_camera(const std::vector<BoardObservation>& views, c
   const int given_missing = static_cast<int>(
       std::count_if(problem.corners.begin(), problem.corners.end(), [](auto& c) { return c.z() < 0; }));
 
-  // --- staged solve -------------------------------------------------------
+  return {problem, frame_view, given_missing};
+}
+
+/// The staged solve: board poses, the core, then each lens model of the chain; outliers on the last.
+struct FinalSolve {
+  detail::Selection selection;
+  detail::SolveOutput output;
+};
+
+FinalSolve staged_solve(detail::BoardProblem& problem, const std::vector<std::string>& chain, const CalibrationOptions& options,
+                        CalibrationResult& res) {
+  const auto progress = [&](const std::string& s) {
+    if (options.progress) options.progress(s);
+  };
+  const bool seed_full = options.seed.has_value();
   auto solve = [&](const detail::Selection& s, const std::string& stage) {
     progress("solving: " + stage + " (" + problem.lensmodel + ")");
     detail::SolveOutput out = detail::optimize(problem, s);
@@ -392,9 +419,16 @@ CalibrationResult calibrate_camera(const std::vector<BoardObservation>& views, c
     final_out = solve(
         final_sel, final_sel.outlier_rejection ? "all parameters with outlier rejection" : "all parameters");
   }
-  res.solve_seconds = seconds_since(t0);
+  return {final_sel, final_out};
+}
 
-  // --- results ------------------------------------------------------------
+/// Per-view poses, distances, tilts, residuals, coverage; the RMS, outliers and worst corners.
+void collect_results(const std::vector<BoardObservation>& views, const CalibrationGrid& grid, const PosedProblem& pp,
+                     const detail::SolveOutput& final_out, const CalibrationOptions& options, int W, int H, CalibrationResult& res) {
+  const detail::BoardProblem& problem = pp.problem;
+  const std::vector<int>& frame_view = pp.frame_view;
+  const int nf = static_cast<int>(problem.frames.size());
+  const std::size_t per_view = static_cast<std::size_t>(grid.width) * grid.height;
   res.model = CameraModel{problem.lensmodel, problem.intrinsics, W, H, {}, {}};
   res.mrcal_rms_px = final_out.rms_px;
   res.calobject_warp_x_mm = problem.warp[0];
@@ -442,12 +476,15 @@ CalibrationResult calibrate_camera(const std::vector<BoardObservation>& views, c
   double sum2 = 0;
   for (const auto& c : inliers) sum2 += c.error_px * c.error_px;
   res.rms_px = inliers.empty() ? 0.0 : std::sqrt(sum2 / (2.0 * inliers.size()));
-  res.outliers = final_out.outliers - given_missing;
+  res.outliers = final_out.outliers - pp.given_missing;
   std::sort(inliers.begin(), inliers.end(), [](auto& a, auto& b) { return a.error_px > b.error_px; });
   res.worst_corners.assign(inliers.begin(),
                            inliers.begin() + std::min<std::ptrdiff_t>(10, std::ssize(inliers)));
 
-  // --- warnings -----------------------------------------------------------
+}
+
+/// Warnings on the views' spread, tilt, coverage, RMS and outliers; returns the median board distance.
+double calibration_warnings(CalibrationResult& res) {
   std::vector<double> distances, tilts;
   for (const auto& v : res.views)
     if (v.used) {
@@ -484,100 +521,127 @@ CalibrationResult calibrate_camera(const std::vector<BoardObservation>& views, c
                            " px is large: check focus, motion blur, the board's flatness and the lens model");
   if (res.outliers > 0.05 * (res.outliers + res.corners_used))
     res.warnings.push_back(std::to_string(res.outliers) + " corners were rejected as outliers (over 5%)");
+  return median_distance;
+}
 
-  // --- projection uncertainty ----------------------------------------------
-  if (options.compute_uncertainty) {
-    const auto tu = Clock::now();
-    progress("projection uncertainty");
-    detail::Selection usel = final_sel;
-    usel.outlier_rejection = false;
-    const detail::PackedJacobian pj = detail::packed_jacobian(problem, usel);
-    const int ns = static_cast<int>(pj.scale.size());
-    const int nb = pj.n_board_measurements;
-    // sigma: the spread of the inlier residual coordinates (mrcal's Python
-    // takes the std of all board residuals, missing corners' zeros included,
-    // which underestimates it when corners are missing).
-    double sx = 0, sxx = 0;
-    int nx = 0;
-    for (std::size_t c = 0; c < problem.corners.size(); ++c)
-      if (problem.corners[c].z() >= 0)
-        for (int e = 0; e < 2; ++e) {
-          const double v = pj.board_residuals[2 * c + e];
-          sx += v;
-          sxx += v * v;
-          ++nx;
-        }
-    res.observed_pixel_sigma_px = nx ? std::sqrt(std::max(0.0, sxx / nx - (sx / nx) * (sx / nx))) : 0.0;
-    const Eigen::MatrixXd A = pj.J.transpose() * pj.J;
-    const Eigen::LDLT<Eigen::MatrixXd> ldlt(A);
-    const Eigen::MatrixXd Ainv_JobsT = ldlt.solve(pj.J.topRows(nb).transpose());  // Nstate x nb
-    const Eigen::MatrixXd covariance = Ainv_JobsT * Ainv_JobsT.transpose();       // packed, / sigma^2
+/// The projection uncertainty (mrcal's method): the state covariance through dq/db at cell centres.
+void projection_uncertainty(const detail::BoardProblem& problem, detail::Selection usel, const CalibrationOptions& options,
+                            double median_distance, int W, int H, CalibrationResult& res) {
+  const auto progress = [&](const std::string& s) {
+    if (options.progress) options.progress(s);
+  };
+  const int nf = static_cast<int>(problem.frames.size());
+  const auto tu = Clock::now();
+  progress("projection uncertainty");
+  usel.outlier_rejection = false;
+  const detail::PackedJacobian pj = detail::packed_jacobian(problem, usel);
+  const int ns = static_cast<int>(pj.scale.size());
+  const int nb = pj.n_board_measurements;
+  // sigma: the spread of the inlier residual coordinates (mrcal's Python
+  // takes the std of all board residuals, missing corners' zeros included,
+  // which underestimates it when corners are missing).
+  double sx = 0, sxx = 0;
+  int nx = 0;
+  for (std::size_t c = 0; c < problem.corners.size(); ++c)
+    if (problem.corners[c].z() >= 0)
+      for (int e = 0; e < 2; ++e) {
+        const double v = pj.board_residuals[2 * c + e];
+        sx += v;
+        sxx += v * v;
+        ++nx;
+      }
+  res.observed_pixel_sigma_px = nx ? std::sqrt(std::max(0.0, sxx / nx - (sx / nx) * (sx / nx))) : 0.0;
+  const Eigen::MatrixXd A = pj.J.transpose() * pj.J;
+  const Eigen::LDLT<Eigen::MatrixXd> ldlt(A);
+  const Eigen::MatrixXd Ainv_JobsT = ldlt.solve(pj.J.topRows(nb).transpose());  // Nstate x nb
+  const Eigen::MatrixXd covariance = Ainv_JobsT * Ainv_JobsT.transpose();       // packed, / sigma^2
 
-    res.uncertainty_cells_x = options.uncertainty_cells_x;
-    res.uncertainty_cells_y = options.uncertainty_cells_y;
-    res.uncertainty_distance_mm =
-        options.uncertainty_distance_mm > 0 ? options.uncertainty_distance_mm : median_distance;
-    std::vector<Vec2> q;
-    for (int cy = 0; cy < res.uncertainty_cells_y; ++cy)
-      for (int cx = 0; cx < res.uncertainty_cells_x; ++cx)
-        q.emplace_back((cx + 0.5) * W / res.uncertainty_cells_x - 0.5,
-                       (cy + 0.5) * H / res.uncertainty_cells_y - 0.5);
-    q.emplace_back(0.5 * (W - 1), 0.5 * (H - 1));
-    const std::size_t nq = q.size();
-    std::vector<Vec3> p_cam = res.model.unproject(q);
-    for (auto& p : p_cam) p = p.normalized() * res.uncertainty_distance_mm;
-    // mrcal's mean-frames reference: the point is carried into every board
-    // frame and back through that frame's (noisy) pose, then averaged.
-    std::vector<Rigid3> poses(static_cast<std::size_t>(nf));
-    for (int fi = 0; fi < nf; ++fi) poses[fi] = Rigid3::from_rt(problem.frames[fi]);
-    // dq/db_packed by central differences, one state element at a time.
-    std::vector<Eigen::MatrixXd> dq_db(nq, Eigen::MatrixXd::Zero(2, ns));
-    constexpr double h = 1e-6;
-    const int n_intr = static_cast<int>(problem.intrinsics.size());
-    CameraModel perturbed = res.model;
-    std::vector<Vec3> pts(nq);
-    auto column = [&](int k, const std::vector<Vec2>& qp, const std::vector<Vec2>& qm) {
-      for (std::size_t n = 0; n < nq; ++n) dq_db[n].col(k) = (qp[n] - qm[n]) / (2 * h);
-    };
-    if (pj.istate_intrinsics >= 0)
-      for (int k = 0; k < n_intr; ++k) {
-        const double step = h * pj.scale[pj.istate_intrinsics + k];
-        perturbed.intrinsics[k] = res.model.intrinsics[k] + step;
-        const auto qp = perturbed.project(p_cam);
-        perturbed.intrinsics[k] = res.model.intrinsics[k] - step;
-        const auto qm = perturbed.project(p_cam);
-        perturbed.intrinsics[k] = res.model.intrinsics[k];
-        column(pj.istate_intrinsics + k, qp, qm);
-      }
-    for (int fi = 0; fi < nf; ++fi) {
-      const Rigid3 board_from_cam = poses[fi].inverse();
-      for (int e = 0; e < 6; ++e) {
-        const int k = pj.istate_frames + 6 * fi + e;
-        std::vector<Vec2> qpm[2];
-        for (int sgn = 0; sgn < 2; ++sgn) {
-          auto rt = problem.frames[fi];
-          rt[e] += (sgn ? -1 : 1) * h * pj.scale[k];
-          const Rigid3 moved = Rigid3::from_rt(rt);
-          for (std::size_t n = 0; n < nq; ++n)
-            pts[n] = p_cam[n] + (moved.apply(board_from_cam.apply(p_cam[n])) - p_cam[n]) / nf;
-          qpm[sgn] = res.model.project(pts);
-        }
-        column(k, qpm[0], qpm[1]);
-      }
+  res.uncertainty_cells_x = options.uncertainty_cells_x;
+  res.uncertainty_cells_y = options.uncertainty_cells_y;
+  res.uncertainty_distance_mm =
+      options.uncertainty_distance_mm > 0 ? options.uncertainty_distance_mm : median_distance;
+  std::vector<Vec2> q;
+  for (int cy = 0; cy < res.uncertainty_cells_y; ++cy)
+    for (int cx = 0; cx < res.uncertainty_cells_x; ++cx)
+      q.emplace_back((cx + 0.5) * W / res.uncertainty_cells_x - 0.5,
+                     (cy + 0.5) * H / res.uncertainty_cells_y - 0.5);
+  q.emplace_back(0.5 * (W - 1), 0.5 * (H - 1));
+  const std::size_t nq = q.size();
+  std::vector<Vec3> p_cam = res.model.unproject(q);
+  for (auto& p : p_cam) p = p.normalized() * res.uncertainty_distance_mm;
+  // mrcal's mean-frames reference: the point is carried into every board
+  // frame and back through that frame's (noisy) pose, then averaged.
+  std::vector<Rigid3> poses(static_cast<std::size_t>(nf));
+  for (int fi = 0; fi < nf; ++fi) poses[fi] = Rigid3::from_rt(problem.frames[fi]);
+  // dq/db_packed by central differences, one state element at a time.
+  std::vector<Eigen::MatrixXd> dq_db(nq, Eigen::MatrixXd::Zero(2, ns));
+  constexpr double h = 1e-6;
+  const int n_intr = static_cast<int>(problem.intrinsics.size());
+  CameraModel perturbed = res.model;
+  std::vector<Vec3> pts(nq);
+  auto column = [&](int k, const std::vector<Vec2>& qp, const std::vector<Vec2>& qm) {
+    for (std::size_t n = 0; n < nq; ++n) dq_db[n].col(k) = (qp[n] - qm[n]) / (2 * h);
+  };
+  if (pj.istate_intrinsics >= 0)
+    for (int k = 0; k < n_intr; ++k) {
+      const double step = h * pj.scale[pj.istate_intrinsics + k];
+      perturbed.intrinsics[k] = res.model.intrinsics[k] + step;
+      const auto qp = perturbed.project(p_cam);
+      perturbed.intrinsics[k] = res.model.intrinsics[k] - step;
+      const auto qm = perturbed.project(p_cam);
+      perturbed.intrinsics[k] = res.model.intrinsics[k];
+      column(pj.istate_intrinsics + k, qp, qm);
     }
-    const double sigma = res.observed_pixel_sigma_px;
-    res.uncertainty_px.resize(nq - 1);
-    for (std::size_t n = 0; n < nq; ++n) {
-      const Eigen::Matrix2d var = dq_db[n] * covariance * dq_db[n].transpose() * sigma * sigma;
-      const double worst =
-          std::sqrt(std::max(0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(var).eigenvalues()(1)));
-      if (n + 1 < nq)
-        res.uncertainty_px[n] = std::isfinite(worst) ? worst : -1;
-      else
-        res.uncertainty_center_px = std::isfinite(worst) ? worst : -1;
+  for (int fi = 0; fi < nf; ++fi) {
+    const Rigid3 board_from_cam = poses[fi].inverse();
+    for (int e = 0; e < 6; ++e) {
+      const int k = pj.istate_frames + 6 * fi + e;
+      std::vector<Vec2> qpm[2];
+      for (int sgn = 0; sgn < 2; ++sgn) {
+        auto rt = problem.frames[fi];
+        rt[e] += (sgn ? -1 : 1) * h * pj.scale[k];
+        const Rigid3 moved = Rigid3::from_rt(rt);
+        for (std::size_t n = 0; n < nq; ++n)
+          pts[n] = p_cam[n] + (moved.apply(board_from_cam.apply(p_cam[n])) - p_cam[n]) / nf;
+        qpm[sgn] = res.model.project(pts);
+      }
+      column(k, qpm[0], qpm[1]);
     }
-    res.uncertainty_seconds = seconds_since(tu);
   }
+  const double sigma = res.observed_pixel_sigma_px;
+  res.uncertainty_px.resize(nq - 1);
+  for (std::size_t n = 0; n < nq; ++n) {
+    const Eigen::Matrix2d var = dq_db[n] * covariance * dq_db[n].transpose() * sigma * sigma;
+    const double worst =
+        std::sqrt(std::max(0.0, Eigen::SelfAdjointEigenSolver<Eigen::Matrix2d>(var).eigenvalues()(1)));
+    if (n + 1 < nq)
+      res.uncertainty_px[n] = std::isfinite(worst) ? worst : -1;
+    else
+      res.uncertainty_center_px = std::isfinite(worst) ? worst : -1;
+  }
+  res.uncertainty_seconds = seconds_since(tu);
+}
+
+}  // namespace
+
+CalibrationResult calibrate_camera(const std::vector<BoardObservation>& views, const CalibrationGrid& grid,
+                                   const CalibrationOptions& options) {
+  const auto t0 = Clock::now();
+  check_calibration_lensmodel(options.lensmodel);
+  options.validate();
+  grid.validate();
+  CalibrationResult res;
+  const UsableViews u = usable_views(views, grid, options, res);
+  const int W = u.used.front()->width, H = u.used.front()->height;
+  const std::vector<std::string> chain = lensmodel_chain(options.lensmodel);
+  for (std::size_t k = 0; k < chain.size(); ++k) res.lensmodel_chain += (k ? " -> " : "") + chain[k];
+  const double f = seed_focal(u.used, grid, options, W, H, res);
+  PosedProblem pp = posed_problem(u, grid, options, chain, f, W, H, res);
+  const FinalSolve fs = staged_solve(pp.problem, chain, options, res);
+  res.solve_seconds = seconds_since(t0);
+  collect_results(views, grid, pp, fs.output, options, W, H, res);
+  const double median_distance = calibration_warnings(res);
+  if (options.compute_uncertainty) projection_uncertainty(pp.problem, fs.selection, options, median_distance, W, H, res);
   return res;
 }
 
