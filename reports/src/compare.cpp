@@ -154,6 +154,70 @@ void CompareOptions::validate() const {
     throw std::invalid_argument("CompareOptions::min_matched_fraction must be in (0, 1]");
 }
 
+namespace {
+
+/// Hotspots of A and B matched greedily by centroid distance, each pair's verdict (better, worse, unchanged
+/// within the significance), and the unmatched as gone or new.
+json hotspot_changes(const json& ha, const json& hb, const CompareOptions& o) {
+  struct Pair { double d; std::size_t i, j; };
+  std::vector<Pair> pairs;
+  for (std::size_t i = 0; i < ha.size(); ++i)
+    for (std::size_t j = 0; j < hb.size(); ++j) {
+      const double d = (centroid(ha[i]) - centroid(hb[j])).norm();
+      if (d <= o.hotspot_match_mm) pairs.push_back({d, i, j});
+    }
+  std::sort(pairs.begin(), pairs.end(), [](const Pair& x, const Pair& y) { return x.d < y.d; });
+  std::vector<char> used_a(ha.size(), 0), used_b(hb.size(), 0);
+  json changes = json::array();
+  for (const Pair& p : pairs) {
+    if (used_a[p.i] || used_b[p.j]) continue;
+    used_a[p.i] = used_b[p.j] = 1;
+    const json &x = ha[p.i], &y = hb[p.j];
+    const double dpeak = get(y, "peak_kpa") - get(x, "peak_kpa");
+    const double sigma = std::hypot(std::isfinite(get(x, "peak_sigma_kpa")) ? get(x, "peak_sigma_kpa") : 0.0,
+                                    std::isfinite(get(y, "peak_sigma_kpa")) ? get(y, "peak_sigma_kpa") : 0.0);
+    const double limit = std::max(0.1, o.significance_sigmas * sigma);
+    const std::string verdict = !std::isfinite(dpeak) ? "unknown" : dpeak < -limit ? "better" : dpeak > limit ? "worse" : "unchanged";
+    changes.push_back({{"a_id", x.value("id", json())}, {"b_id", y.value("id", json())}, {"centroid_distance_mm", p.d},
+                       {"a_peak_kpa", get(x, "peak_kpa")}, {"b_peak_kpa", get(y, "peak_kpa")}, {"delta_peak_kpa", dpeak},
+                       {"delta_peak_sigma_kpa", sigma}, {"delta_mean_kpa", get(y, "mean_kpa") - get(x, "mean_kpa")},
+                       {"delta_area_mm2", get(y, "area_mm2") - get(x, "area_mm2")}, {"verdict", verdict}});
+  }
+  for (std::size_t i = 0; i < ha.size(); ++i)
+    if (!used_a[i])
+      changes.push_back({{"a_id", ha[i].value("id", json())}, {"b_id", nullptr}, {"a_peak_kpa", get(ha[i], "peak_kpa")},
+                         {"b_peak_kpa", nullptr}, {"delta_peak_kpa", -get(ha[i], "peak_kpa")}, {"verdict", "gone"}});
+  for (std::size_t j = 0; j < hb.size(); ++j)
+    if (!used_b[j])
+      changes.push_back({{"a_id", nullptr}, {"b_id", hb[j].value("id", json())}, {"a_peak_kpa", nullptr},
+                         {"b_peak_kpa", get(hb[j], "peak_kpa")}, {"delta_peak_kpa", get(hb[j], "peak_kpa")}, {"verdict", "new"}});
+  return changes;
+}
+
+/// The rows of compare.html's hotspot table, each change in words.
+std::string change_rows(const json& changes) {
+  std::string rows;
+  for (const json& c : changes) {
+    const std::string verdict = c["verdict"].get<std::string>();
+    std::string words;
+    const double d = c.value("delta_peak_kpa", json()).is_number() ? c["delta_peak_kpa"].get<double>() : NAN;
+    if (verdict == "better") words = "better: peak " + fixed(-d, 1) + " kPa lower";
+    else if (verdict == "worse") words = "worse: peak " + fixed(d, 1) + " kPa higher";
+    else if (verdict == "unchanged") words = "unchanged within the uncertainty (" + signed_fixed(d, 1) + " kPa)";
+    else if (verdict == "gone") words = "gone in B (was " + fixed(c["a_peak_kpa"].is_number() ? c["a_peak_kpa"].get<double>() : NAN, 1) + " kPa)";
+    else if (verdict == "new") words = "new in B (" + fixed(c["b_peak_kpa"].is_number() ? c["b_peak_kpa"].get<double>() : NAN, 1) + " kPa)";
+    else words = "unknown";
+    auto id = [](const json& v) { return v.is_null() ? std::string("\xE2\x80\x94") : html_escape(v.dump()); };
+    auto kpa = [](const json& c, const char* k) { return c.contains(k) && c[k].is_number() ? fixed(c[k].get<double>(), 2) : std::string("\xE2\x80\x94"); };
+    rows += "<tr data-verdict=\"" + verdict + "\"><td>" + id(c["a_id"]) + "</td><td>" + id(c["b_id"]) + "</td><td>" + kpa(c, "a_peak_kpa") +
+            "</td><td>" + kpa(c, "b_peak_kpa") + "</td><td>" + kpa(c, "delta_peak_kpa") + "</td><td>" + kpa(c, "delta_area_mm2") +
+            "</td><td>" + html_escape(words) + "</td></tr>";
+  }
+  return rows;
+}
+
+}  // namespace
+
 CompareResult compare_assessments(const fs::path& a_folder, const fs::path& b_folder, const fs::path& out,
                                   const CompareOptions& o) {
   o.validate();
@@ -188,38 +252,7 @@ CompareResult compare_assessments(const fs::path& a_folder, const fs::path& b_fo
 
   // Hotspots: greedy matching by centroid distance.
   const json ha = A.report.value("hotspots", json::array()), hb = B.report.value("hotspots", json::array());
-  struct Pair { double d; std::size_t i, j; };
-  std::vector<Pair> pairs;
-  for (std::size_t i = 0; i < ha.size(); ++i)
-    for (std::size_t j = 0; j < hb.size(); ++j) {
-      const double d = (centroid(ha[i]) - centroid(hb[j])).norm();
-      if (d <= o.hotspot_match_mm) pairs.push_back({d, i, j});
-    }
-  std::sort(pairs.begin(), pairs.end(), [](const Pair& x, const Pair& y) { return x.d < y.d; });
-  std::vector<char> used_a(ha.size(), 0), used_b(hb.size(), 0);
-  json changes = json::array();
-  for (const Pair& p : pairs) {
-    if (used_a[p.i] || used_b[p.j]) continue;
-    used_a[p.i] = used_b[p.j] = 1;
-    const json &x = ha[p.i], &y = hb[p.j];
-    const double dpeak = get(y, "peak_kpa") - get(x, "peak_kpa");
-    const double sigma = std::hypot(std::isfinite(get(x, "peak_sigma_kpa")) ? get(x, "peak_sigma_kpa") : 0.0,
-                                    std::isfinite(get(y, "peak_sigma_kpa")) ? get(y, "peak_sigma_kpa") : 0.0);
-    const double limit = std::max(0.1, o.significance_sigmas * sigma);
-    const std::string verdict = !std::isfinite(dpeak) ? "unknown" : dpeak < -limit ? "better" : dpeak > limit ? "worse" : "unchanged";
-    changes.push_back({{"a_id", x.value("id", json())}, {"b_id", y.value("id", json())}, {"centroid_distance_mm", p.d},
-                       {"a_peak_kpa", get(x, "peak_kpa")}, {"b_peak_kpa", get(y, "peak_kpa")}, {"delta_peak_kpa", dpeak},
-                       {"delta_peak_sigma_kpa", sigma}, {"delta_mean_kpa", get(y, "mean_kpa") - get(x, "mean_kpa")},
-                       {"delta_area_mm2", get(y, "area_mm2") - get(x, "area_mm2")}, {"verdict", verdict}});
-  }
-  for (std::size_t i = 0; i < ha.size(); ++i)
-    if (!used_a[i])
-      changes.push_back({{"a_id", ha[i].value("id", json())}, {"b_id", nullptr}, {"a_peak_kpa", get(ha[i], "peak_kpa")},
-                         {"b_peak_kpa", nullptr}, {"delta_peak_kpa", -get(ha[i], "peak_kpa")}, {"verdict", "gone"}});
-  for (std::size_t j = 0; j < hb.size(); ++j)
-    if (!used_b[j])
-      changes.push_back({{"a_id", nullptr}, {"b_id", hb[j].value("id", json())}, {"a_peak_kpa", nullptr},
-                         {"b_peak_kpa", get(hb[j], "peak_kpa")}, {"delta_peak_kpa", get(hb[j], "peak_kpa")}, {"verdict", "new"}});
+  const json changes = hotspot_changes(ha, hb, o);
   // NaN never reaches the JSON: nlohmann writes it as null.
 
   fs::create_directories(out);
@@ -272,23 +305,7 @@ CompareResult compare_assessments(const fs::path& a_folder, const fs::path& b_fo
   body += "<li>Over the surface both saw, B &minus; A is " + signed_fixed(sum / n, 2) + " kPa on average; the largest rise " +
           signed_fixed(max_inc, 1) + " kPa, the largest drop " + signed_fixed(max_dec, 1) + " kPa.</li>";
   body += "<li>" + html_escape(result.notes[0]) + ".</li></ul></header>";
-  std::string rows;
-  for (const json& c : changes) {
-    const std::string verdict = c["verdict"].get<std::string>();
-    std::string words;
-    const double d = c.value("delta_peak_kpa", json()).is_number() ? c["delta_peak_kpa"].get<double>() : NAN;
-    if (verdict == "better") words = "better: peak " + fixed(-d, 1) + " kPa lower";
-    else if (verdict == "worse") words = "worse: peak " + fixed(d, 1) + " kPa higher";
-    else if (verdict == "unchanged") words = "unchanged within the uncertainty (" + signed_fixed(d, 1) + " kPa)";
-    else if (verdict == "gone") words = "gone in B (was " + fixed(c["a_peak_kpa"].is_number() ? c["a_peak_kpa"].get<double>() : NAN, 1) + " kPa)";
-    else if (verdict == "new") words = "new in B (" + fixed(c["b_peak_kpa"].is_number() ? c["b_peak_kpa"].get<double>() : NAN, 1) + " kPa)";
-    else words = "unknown";
-    auto id = [](const json& v) { return v.is_null() ? std::string("\xE2\x80\x94") : html_escape(v.dump()); };
-    auto kpa = [](const json& c, const char* k) { return c.contains(k) && c[k].is_number() ? fixed(c[k].get<double>(), 2) : std::string("\xE2\x80\x94"); };
-    rows += "<tr data-verdict=\"" + verdict + "\"><td>" + id(c["a_id"]) + "</td><td>" + id(c["b_id"]) + "</td><td>" + kpa(c, "a_peak_kpa") +
-            "</td><td>" + kpa(c, "b_peak_kpa") + "</td><td>" + kpa(c, "delta_peak_kpa") + "</td><td>" + kpa(c, "delta_area_mm2") +
-            "</td><td>" + html_escape(words) + "</td></tr>";
-  }
+  const std::string rows = change_rows(changes);
   body += "<section id=\"hotspot-changes\"><h2>Hotspots: better or worse</h2>";
   body += changes.empty() ? "<p>Neither assessment has hotspots.</p>"
                           : "<table id=\"changes-table\" class=\"data\"><thead><tr><th>A #</th><th>B #</th><th>A peak (kPa)</th>"
