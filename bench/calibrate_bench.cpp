@@ -115,6 +115,94 @@ double median(std::vector<double> v) {
   return v.empty() ? 0 : v[v.size() / 2];
 }
 
+/// mrcal's own tool on the same corners (a child process, timed as such); its RMS from its optimization inputs.
+Row mrcal_tool_row(const std::vector<BoardObservation>& views, const fs::path& dir, const CameraModel& truth,
+                   const std::vector<int>& observed) {
+  Row row;
+  write_corners_levels_vnl(views, dir / "corners.vnl");
+  fs::remove_all(dir / "mrcal");
+  fs::create_directories(dir / "mrcal");
+  const double c0 = cpu_seconds(RUSAGE_CHILDREN);
+  const auto t0 = Clock::now();
+  const std::string out =
+      run("cd " + dir.string() +
+          " && /usr/bin/python3 /usr/bin/mrcal-calibrate-cameras --corners-cache corners.vnl "
+          "--lensmodel LENSMODEL_OPENCV8 --focal 1000 --imagersize 1280 960 --object-spacing 30 "
+          "--object-width-n 10 --object-height-n 10 --outdir mrcal 'frame*.png'");
+  row.wall = std::chrono::duration<double>(Clock::now() - t0).count();
+  row.cpu = cpu_seconds(RUSAGE_CHILDREN) - c0;
+  std::optional<CameraModel> tool;
+  try {
+    if (out.rfind("FAILED", 0) != 0)
+      tool = read_cameramodel(dir / "mrcal" / "camera-0.cameramodel");
+    else
+      std::printf("  mrcal-calibrate-cameras failed:\n%s\n", out.c_str());
+  } catch (const std::exception& e) {
+    std::printf("  mrcal-calibrate-cameras wrote an unusable model: %s\n", e.what());
+  }
+  if (tool) {
+    const CameraModel& m = *tool;
+    // Its RMS per coordinate over its inliers, from its optimization_inputs
+    // (it prints one decimal), outside the timing.
+    const std::string stats = run(
+        "cd " + dir.string() +
+        " && /usr/bin/python3 -c \"import mrcal, numpy as np; m = "
+        "mrcal.cameramodel('mrcal/camera-0.cameramodel'); "
+        "oi = m.optimization_inputs(); x = mrcal.optimizer_callback(**oi)[1]; "
+        "nb = mrcal.num_measurements_boards(**oi); w = oi['observations_board'][..., 2].ravel() >= 0; "
+        "xb = x[:nb].reshape(-1, 2)[w]; print(np.sqrt(np.mean(xb * xb)), int(w.sum()))\"");
+    std::sscanf(stats.substr(stats.find_last_of('\n', stats.size() - 2) + 1).c_str(), "%lf %d",
+                &row.rms, &row.corners);
+    row.ok = true;
+    score(row, truth, m, observed);
+  }
+  return row;
+}
+
+/// OpenCV's calibrateCamera, rational model (k1 k2 p1 p2 k3 k4 k5 k6 = OPENCV8), on the same corners.
+Row opencv_row(const std::vector<BoardObservation>& views, const CalibrationGrid& grid, const CameraModel& truth,
+               const std::vector<int>& observed) {
+  Row row;
+  std::vector<std::vector<cv::Point3f>> object;
+  std::vector<std::vector<cv::Point2f>> image;
+  for (const auto& v : views) {
+    object.emplace_back();
+    image.emplace_back();
+    for (int i = 0; i < grid.height; ++i)
+      for (int j = 0; j < grid.width; ++j) {
+        const auto& c = v.corners[static_cast<std::size_t>(i) * grid.width + j];
+        if (c.z() < 0) continue;
+        object.back().emplace_back(float(j * grid.spacing_mm), float(i * grid.spacing_mm), 0.f);
+        image.back().emplace_back(float(c.x()), float(c.y()));
+      }
+  }
+  cv::Mat K, D;
+  std::vector<cv::Mat> rvecs, tvecs;
+  const double c0 = cpu_seconds(RUSAGE_SELF);
+  const auto t0 = Clock::now();
+  cv::calibrateCamera(object, image, cv::Size(1280, 960), K, D, rvecs, tvecs, cv::CALIB_RATIONAL_MODEL);
+  row.wall = std::chrono::duration<double>(Clock::now() - t0).count();
+  row.cpu = cpu_seconds(RUSAGE_SELF) - c0;
+  CameraModel m;
+  m.lensmodel = "LENSMODEL_OPENCV8";
+  m.width = 1280;
+  m.height = 960;
+  m.intrinsics = {K.at<double>(0, 0), K.at<double>(1, 1), K.at<double>(0, 2), K.at<double>(1, 2)};
+  for (int k = 0; k < 8; ++k) m.intrinsics.push_back(D.at<double>(k));
+  std::vector<Rigid3> poses;
+  for (std::size_t v = 0; v < views.size(); ++v) {
+    Rigid3 p;
+    p.rotation =
+        rotation_from_rodrigues({rvecs[v].at<double>(0), rvecs[v].at<double>(1), rvecs[v].at<double>(2)});
+    p.translation = {tvecs[v].at<double>(0), tvecs[v].at<double>(1), tvecs[v].at<double>(2)};
+    poses.push_back(p);
+  }
+  row.rms = rms_of(m, views, grid, poses, &row.corners);
+  row.ok = true;
+  score(row, truth, m, observed);
+  return row;
+}
+
 }  // namespace
 
 int main(int argc, char** argv) {
@@ -172,87 +260,8 @@ int main(int argc, char** argv) {
     score(rows[0], truth, ours.model, observed);
     score(rows[1], truth, ours.model, observed);
 
-    // mrcal's tool on the same corners.
-    write_corners_levels_vnl(views, dir / "corners.vnl");
-    fs::remove_all(dir / "mrcal");
-    fs::create_directories(dir / "mrcal");
-    {
-      const double c0 = cpu_seconds(RUSAGE_CHILDREN);
-      const auto t0 = Clock::now();
-      const std::string out =
-          run("cd " + dir.string() +
-              " && /usr/bin/python3 /usr/bin/mrcal-calibrate-cameras --corners-cache corners.vnl "
-              "--lensmodel LENSMODEL_OPENCV8 --focal 1000 --imagersize 1280 960 --object-spacing 30 "
-              "--object-width-n 10 --object-height-n 10 --outdir mrcal 'frame*.png'");
-      rows[2].wall = std::chrono::duration<double>(Clock::now() - t0).count();
-      rows[2].cpu = cpu_seconds(RUSAGE_CHILDREN) - c0;
-      std::optional<CameraModel> tool;
-      try {
-        if (out.rfind("FAILED", 0) != 0)
-          tool = read_cameramodel(dir / "mrcal" / "camera-0.cameramodel");
-        else
-          std::printf("  mrcal-calibrate-cameras failed:\n%s\n", out.c_str());
-      } catch (const std::exception& e) {
-        std::printf("  mrcal-calibrate-cameras wrote an unusable model: %s\n", e.what());
-      }
-      if (tool) {
-        const CameraModel& m = *tool;
-        // Its RMS per coordinate over its inliers, from its optimization_inputs
-        // (it prints one decimal), outside the timing.
-        const std::string stats = run(
-            "cd " + dir.string() +
-            " && /usr/bin/python3 -c \"import mrcal, numpy as np; m = "
-            "mrcal.cameramodel('mrcal/camera-0.cameramodel'); "
-            "oi = m.optimization_inputs(); x = mrcal.optimizer_callback(**oi)[1]; "
-            "nb = mrcal.num_measurements_boards(**oi); w = oi['observations_board'][..., 2].ravel() >= 0; "
-            "xb = x[:nb].reshape(-1, 2)[w]; print(np.sqrt(np.mean(xb * xb)), int(w.sum()))\"");
-        std::sscanf(stats.substr(stats.find_last_of('\n', stats.size() - 2) + 1).c_str(), "%lf %d",
-                    &rows[2].rms, &rows[2].corners);
-        rows[2].ok = true;
-        score(rows[2], truth, m, observed);
-      }
-    }
-
-    // OpenCV's calibrateCamera, rational model (k1 k2 p1 p2 k3 k4 k5 k6 = OPENCV8).
-    {
-      std::vector<std::vector<cv::Point3f>> object;
-      std::vector<std::vector<cv::Point2f>> image;
-      for (const auto& v : views) {
-        object.emplace_back();
-        image.emplace_back();
-        for (int i = 0; i < grid.height; ++i)
-          for (int j = 0; j < grid.width; ++j) {
-            const auto& c = v.corners[static_cast<std::size_t>(i) * grid.width + j];
-            if (c.z() < 0) continue;
-            object.back().emplace_back(float(j * grid.spacing_mm), float(i * grid.spacing_mm), 0.f);
-            image.back().emplace_back(float(c.x()), float(c.y()));
-          }
-      }
-      cv::Mat K, D;
-      std::vector<cv::Mat> rvecs, tvecs;
-      const double c0 = cpu_seconds(RUSAGE_SELF);
-      const auto t0 = Clock::now();
-      cv::calibrateCamera(object, image, cv::Size(1280, 960), K, D, rvecs, tvecs, cv::CALIB_RATIONAL_MODEL);
-      rows[3].wall = std::chrono::duration<double>(Clock::now() - t0).count();
-      rows[3].cpu = cpu_seconds(RUSAGE_SELF) - c0;
-      CameraModel m;
-      m.lensmodel = "LENSMODEL_OPENCV8";
-      m.width = 1280;
-      m.height = 960;
-      m.intrinsics = {K.at<double>(0, 0), K.at<double>(1, 1), K.at<double>(0, 2), K.at<double>(1, 2)};
-      for (int k = 0; k < 8; ++k) m.intrinsics.push_back(D.at<double>(k));
-      std::vector<Rigid3> poses;
-      for (std::size_t v = 0; v < views.size(); ++v) {
-        Rigid3 p;
-        p.rotation =
-            rotation_from_rodrigues({rvecs[v].at<double>(0), rvecs[v].at<double>(1), rvecs[v].at<double>(2)});
-        p.translation = {tvecs[v].at<double>(0), tvecs[v].at<double>(1), tvecs[v].at<double>(2)};
-        poses.push_back(p);
-      }
-      rows[3].rms = rms_of(m, views, grid, poses, &rows[3].corners);
-      rows[3].ok = true;
-      score(rows[3], truth, m, observed);
-    }
+    rows[2] = mrcal_tool_row(views, dir, truth, observed);
+    rows[3] = opencv_row(views, grid, truth, observed);
     for (int k = 0; k < 4; ++k) {
       if (rows[k].ok)
         print_row(names[k], rows[k], rows[0].wall);

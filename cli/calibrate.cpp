@@ -128,20 +128,74 @@ void print_summary(const CalibrationResult& r, std::ostream& out) {
   for (const auto& w : r.warnings) out << "warning: " << w << "\n";
 }
 
+/// The command line of `clearfit calibrate`.
+struct CalibrateArgs {
+  std::string board, corners, out, report, from_opencv, from_cameramodel, seed, lensmodel = "LENSMODEL_OPENCV8";
+  std::string corners_out;
+  std::vector<int> grid, imagersize;
+  std::vector<std::string> images;
+  double spacing_mm = 0, focal = 0, uncertainty_distance_mm = 0;
+  bool no_uncertainty = false, no_outlier_rejection = false, no_warp = false, no_refine = false;
+  ViewSelectionOptions video;
+};
+
+/// --from-opencv / --from-cameramodel: an existing calibration checked and rewritten.
+int convert_model(const CalibrateArgs& a) {
+  if (!a.from_opencv.empty() && !a.from_cameramodel.empty())
+    throw InputError("", "--from-opencv", "cannot be combined with --from-cameramodel");
+  if (!a.images.empty() || !a.corners.empty())
+    throw InputError("", a.from_opencv.empty() ? "--from-cameramodel" : "--from-opencv",
+                     "converts a model; it cannot be combined with images or --corners");
+  const CameraModel m = a.from_opencv.empty() ? read_cameramodel(a.from_cameramodel)
+                                               : camera_from_opencv_yaml(a.from_opencv);
+  write_cameramodel(m, a.out);
+  if (!a.report.empty())
+    write_file_atomically(
+        a.report,
+        nlohmann::json{
+            {"schema", "clearfit.calibration/1"},
+            {"inputs",
+             {{"converted_from", a.from_opencv.empty() ? a.from_cameramodel : a.from_opencv}}},
+            {"lensmodel", m.lensmodel},
+            {"imagersize", {m.width, m.height}},
+            {"intrinsics", m.intrinsics}}
+                .dump(2) +
+            "\n");
+  std::cout << "converted to " << m.lensmodel << " (" << m.width << " x " << m.height << "); wrote "
+            << a.out << "\n";
+  return 0;
+}
+
+/// The camera model, the report and the corners written; the files already written are removed on failure.
+std::vector<std::string> write_calibration(const CalibrateArgs& a, const CalibrationResult& result, const nlohmann::json& report,
+                                           const BoardViews& views, const std::optional<Board>& board) {
+  std::vector<std::string> written;
+  try {
+    write_cameramodel(result.model, a.out);
+    written.push_back(a.out);
+    if (!a.report.empty()) {
+      write_file_atomically(a.report, report.dump(2) + "\n");
+      written.push_back(a.report);
+    }
+    if (!a.corners_out.empty()) {
+      if (board)
+        write_corners_vnl(views.views, *board, a.corners_out);
+      else
+        write_corners_levels_vnl(views.views, a.corners_out);
+      written.push_back(a.corners_out);
+    }
+  } catch (...) {
+    std::error_code ignored;
+    for (const auto& w : written) fs::remove(w, ignored);
+    throw;
+  }
+  return written;
+}
+
 }  // namespace
 
 Run add_calibrate(CLI::App& app) {
-  struct Opts {
-    std::string board, corners, out, report, from_opencv, from_cameramodel, seed,
-        lensmodel = "LENSMODEL_OPENCV8";
-    std::string corners_out;
-    std::vector<int> grid, imagersize;
-    std::vector<std::string> images;
-    double spacing_mm = 0, focal = 0, uncertainty_distance_mm = 0;
-    bool no_uncertainty = false, no_outlier_rejection = false, no_warp = false, no_refine = false;
-    ViewSelectionOptions video;
-  };
-  auto o = std::make_shared<Opts>();
+  auto o = std::make_shared<CalibrateArgs>();
   CLI::App* sub = app.add_subcommand(
       "calibrate",
       "Camera calibration from board views with mrcal's optimizer (or conversion of an existing model)");
@@ -180,32 +234,7 @@ Run add_calibrate(CLI::App& app) {
     check_output_folder(o->report);
     check_output_folder(o->corners_out);
 
-    // --- conversions ---------------------------------------------------
-    if (!o->from_opencv.empty() || !o->from_cameramodel.empty()) {
-      if (!o->from_opencv.empty() && !o->from_cameramodel.empty())
-        throw InputError("", "--from-opencv", "cannot be combined with --from-cameramodel");
-      if (!o->images.empty() || !o->corners.empty())
-        throw InputError("", o->from_opencv.empty() ? "--from-cameramodel" : "--from-opencv",
-                         "converts a model; it cannot be combined with images or --corners");
-      const CameraModel m = o->from_opencv.empty() ? read_cameramodel(o->from_cameramodel)
-                                                   : camera_from_opencv_yaml(o->from_opencv);
-      write_cameramodel(m, o->out);
-      if (!o->report.empty())
-        write_file_atomically(
-            o->report,
-            nlohmann::json{
-                {"schema", "clearfit.calibration/1"},
-                {"inputs",
-                 {{"converted_from", o->from_opencv.empty() ? o->from_cameramodel : o->from_opencv}}},
-                {"lensmodel", m.lensmodel},
-                {"imagersize", {m.width, m.height}},
-                {"intrinsics", m.intrinsics}}
-                    .dump(2) +
-                "\n");
-      std::cout << "converted to " << m.lensmodel << " (" << m.width << " x " << m.height << "); wrote "
-                << o->out << "\n";
-      return 0;
-    }
+    if (!o->from_opencv.empty() || !o->from_cameramodel.empty()) return convert_model(*o);
 
     // --- the board ---------------------------------------------------------
     std::optional<Board> board;
@@ -282,26 +311,7 @@ Run add_calibrate(CLI::App& app) {
     // --- outputs -------------------------------------------------------
     nlohmann::json report = report_json(result, grid, inputs, refinement);
     report["timings_s"]["total"] = total_s;
-    std::vector<std::string> written;
-    try {
-      write_cameramodel(result.model, o->out);
-      written.push_back(o->out);
-      if (!o->report.empty()) {
-        write_file_atomically(o->report, report.dump(2) + "\n");
-        written.push_back(o->report);
-      }
-      if (!o->corners_out.empty()) {
-        if (board)
-          write_corners_vnl(views.views, *board, o->corners_out);
-        else
-          write_corners_levels_vnl(views.views, o->corners_out);
-        written.push_back(o->corners_out);
-      }
-    } catch (...) {
-      std::error_code ignored;
-      for (const auto& w : written) fs::remove(w, ignored);
-      throw;
-    }
+    const std::vector<std::string> written = write_calibration(*o, result, report, views, board);
     for (const auto& n : result.notes) std::cerr << "note: " << n << "\n";
     for (const auto& line : views.summaries) std::cout << line << "\n";
     print_summary(result, std::cout);
