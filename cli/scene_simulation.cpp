@@ -14,13 +14,48 @@ namespace clearfit::cli {
 
 namespace {
 
+/// simulation.preset: realistic — every real-capture effect the simulator has, each at a
+/// plausible strength for a hand-held phone over a wrist (README "The realistic preset"):
+/// a slow drift, physiological tremor and a slight roll; one highlight in both phases and
+/// one only when worn; ±3 % exposure and white-balance steps with slow drifts; 100 Hz
+/// flicker of 3 % whose frequency drifts. Keys given in the scene replace the preset's.
+void apply_preset(const std::string& name, SimulationSection& o) {
+  if (name == "none") return;
+  // name == "realistic" (checked by the caller)
+  o.camera.motion_step_px = 0.02;
+  o.camera.motion_drift_px_per_s = 0.5;
+  o.camera.motion_tremor_px = 0.3;
+  o.camera.motion_tremor_hz = 10;
+  o.camera.motion_rotation_deg = 0.3;
+  o.camera.flicker_amplitude = 0.03;
+  o.camera.flicker_hz = 100;
+  sim::PhotometricEffects& fx = o.photometric;
+  fx.flicker_drift_hz_per_s = 0.2;
+  sim::GlareBlob both, worn;
+  both.center = Vec2(0.36, 0.6), both.sigma = 0.02, both.peak = 0.15, both.phases = sim::GlareBlob::Phases::both;
+  worn.center = Vec2(0.66, 0.42), worn.sigma = 0.015, worn.peak = 0.1, worn.phases = sim::GlareBlob::Phases::worn;
+  fx.glare = {both, worn};
+  sim::GainStep s1, s2;
+  s1.t_s = 1.0, s1.gain = {1.03, 1.03, 1.03};
+  s2.t_s = 2.5, s2.gain = {0.98, 1.0, 1.03};
+  fx.steps = {s1, s2};
+  fx.drift_per_s = {0.005, 0.0, -0.005};
+}
+
 class SimulationParser {
  public:
   explicit SimulationParser(const SceneReader& r) : r_(r) {}
 
   void parse(const YAML::Node& s, SimulationSection& o) {
-    r_.only_keys(s, "simulation", {"seed", "out", "format", "crf", "scale", "timeline", "skin", "camera", "flicker", "motion", "pressure", "presses",
-                                   "glare", "exposure"});
+    r_.only_keys(s, "simulation", {"preset", "seed", "out", "format", "crf", "scale", "timeline", "skin", "camera", "flicker", "motion", "pressure",
+                                   "presses", "glare", "exposure"});
+    // The preset first: every key read below replaces its value.
+    if (auto v = r_.get<std::string>(s, "preset", "simulation.preset", "realistic or none")) {
+      if (*v != "realistic" && *v != "none")
+        r_.fail(s["preset"], "simulation.preset", "expected realistic (every real-capture effect at a plausible strength) or none, got '" + *v + "'");
+      o.preset = *v;
+      apply_preset(*v, o);
+    }
     if (auto v = r_.get<long long>(s, "seed", "simulation.seed", "a whole number")) {
       if (*v < 0) r_.fail(s["seed"], "simulation.seed", "expected a number >= 0");
       o.seed = static_cast<std::uint64_t>(*v);
@@ -81,7 +116,7 @@ class SimulationParser {
     }
     if (const YAML::Node p = s["pressure"]) parse_pressure(p, o);
     if (const YAML::Node p = s["presses"]) parse_presses(p, o);
-    o.photometric = parse_photometric(r_, s);
+    o.photometric = parse_photometric(r_, s, o.photometric);
   }
 
  private:

@@ -13,7 +13,11 @@
 #include <clearfit/fit/simulate.hpp>
 #include <clearfit/refraction/map.hpp>
 
+#include <clearfit/atomic_file.hpp>
+#include <nlohmann/json.hpp>
+
 #include <chrono>
+#include <fstream>
 #include <cmath>
 #include <iostream>
 #include <sstream>
@@ -37,6 +41,31 @@ CameraModel scaled_camera(CameraModel cam, double s) {
 
 double seconds_since(std::chrono::steady_clock::time_point t0) {
   return std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+}
+
+/// truth.json's "preset": its name and the strength of every effect it sets, as
+/// rendered (after the scene's own keys replaced the preset's).
+void record_preset(const std::filesystem::path& truth_file, const SimulationSection& spec) {
+  nlohmann::json t;
+  {
+    std::ifstream in(truth_file);
+    t = nlohmann::json::parse(in);
+  }
+  const sim::CameraSettings& c = spec.camera;
+  const sim::PhotometricEffects& fx = spec.photometric;
+  nlohmann::json glare = nlohmann::json::array(), steps = nlohmann::json::array();
+  for (const sim::GlareBlob& b : fx.glare)
+    glare.push_back({{"center", {b.center.x(), b.center.y()}}, {"sigma", b.sigma}, {"peak", b.peak},
+                     {"phases", b.phases == sim::GlareBlob::Phases::both ? "both" : b.phases == sim::GlareBlob::Phases::worn ? "worn" : "baseline"}});
+  for (const sim::GainStep& s : fx.steps) steps.push_back({{"t_s", s.t_s}, {"gain", s.gain}});
+  t["preset"] = {{"name", spec.preset},
+                 {"motion", {{"step_px", c.motion_step_px}, {"drift_px_per_s", c.motion_drift_px_per_s}, {"tremor_px", c.motion_tremor_px},
+                             {"tremor_hz", c.motion_tremor_hz}, {"rotation_deg", c.motion_rotation_deg}}},
+                 {"flicker", {{"amplitude", c.flicker_amplitude}, {"hz", c.flicker_hz}, {"drift_hz_per_s", fx.flicker_drift_hz_per_s}}},
+                 {"glare", glare},
+                 {"exposure", {{"steps", steps}, {"drift_per_s", fx.drift_per_s}}},
+                 {"note", "the strengths rendered: the preset's, replaced by the keys the scene gives"}};
+  write_file_atomically(truth_file, t.dump(2) + "\n");
 }
 
 }  // namespace
@@ -162,6 +191,7 @@ Run add_simulate(CLI::App& app) {
       for (const char* f : {"truth.json", "truth_pressure.npy", "truth_vertex_pressure.npy"}) written.emplace_back(f);
       if (photometry)
         for (const auto& f : photometry->write_truth(dir)) written.push_back(f);
+      record_preset(dir / "truth.json", spec);
       const int frames = cap.baseline_frames + cap.press_frames + cap.release_frames;
       std::ostringstream s;
       s.precision(3);

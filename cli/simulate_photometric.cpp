@@ -44,10 +44,10 @@ std::array<double, 3> rgb(const SceneReader& r, const YAML::Node& n, const std::
 
 }  // namespace
 
-sim::PhotometricEffects parse_photometric(const SceneReader& r, const YAML::Node& simulation) {
-  sim::PhotometricEffects fx;
+sim::PhotometricEffects parse_photometric(const SceneReader& r, const YAML::Node& simulation, sim::PhotometricEffects fx) {
   if (const YAML::Node list = simulation["glare"]) {
     if (!list.IsSequence()) r.fail(list, "simulation.glare", "expected a list of glare blobs");
+    fx.glare.clear();
     for (std::size_t i = 0; i < list.size(); ++i) {
       const YAML::Node n = list[i];
       const std::string p = "simulation.glare[" + std::to_string(i) + "]";
@@ -72,6 +72,7 @@ sim::PhotometricEffects parse_photometric(const SceneReader& r, const YAML::Node
     r.only_keys(e, "simulation.exposure", {"steps", "drift_per_s"});
     if (const YAML::Node steps = e["steps"]) {
       if (!steps.IsSequence()) r.fail(steps, "simulation.exposure.steps", "expected a list of {t_s, gain}");
+      fx.steps.clear();
       for (std::size_t i = 0; i < steps.size(); ++i) {
         const std::string p = "simulation.exposure.steps[" + std::to_string(i) + "]";
         r.only_keys(steps[i], p, {"t_s", "gain"});

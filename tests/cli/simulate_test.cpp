@@ -74,3 +74,48 @@ TEST_F(Simulate, BadKeysAreNamedWithTheirLine) {
   scene("  pressure:\n    sources:\n      - {type: gaussian, center_part_mm: [0, 0, -30]}\n");
   expect_input_error({"simulate", "scene.yaml", "--out", "sim", "--no-cache"}, {"scene.yaml", "from the contact surface"});
 }
+
+// simulation.preset: realistic renders every effect at the strengths README.md documents
+// ("The realistic preset"); the scene's own keys replace the preset's; other presets are refused.
+TEST_F(Simulate, RealisticPresetResolvesAndSceneKeysOverride) {
+  const std::string base = std::string(kGood).substr(0, std::string(kGood).find("  presses:"));
+  scene("  preset: realistic\n" + base);
+  RunResult r = run({"simulate", "scene.yaml", "--out", "sim", "--no-cache", "--no-presses"});
+  ASSERT_EQ(r.exit_code, 0) << r;
+  auto p = nlohmann::json::parse(read_text(work() / "sim" / "truth.json"))["preset"];
+  EXPECT_EQ(p["name"], "realistic");
+  EXPECT_DOUBLE_EQ(p["motion"]["drift_px_per_s"].get<double>(), 0.5);
+  EXPECT_DOUBLE_EQ(p["motion"]["tremor_px"].get<double>(), 0.3);
+  EXPECT_DOUBLE_EQ(p["motion"]["rotation_deg"].get<double>(), 0.3);
+  EXPECT_DOUBLE_EQ(p["flicker"]["amplitude"].get<double>(), 0.03);
+  EXPECT_DOUBLE_EQ(p["flicker"]["drift_hz_per_s"].get<double>(), 0.2);
+  ASSERT_EQ(p["glare"].size(), 2u);
+  EXPECT_EQ(p["glare"][1]["phases"], "worn");
+  ASSERT_EQ(p["exposure"]["steps"].size(), 2u);
+  EXPECT_DOUBLE_EQ(p["exposure"]["steps"][0]["gain"][0].get<double>(), 1.03);
+  EXPECT_TRUE(fs::exists(work() / "sim" / "truth_gains.csv")) << r;
+  EXPECT_TRUE(fs::exists(work() / "sim" / "truth_glare_worn.npy")) << r;
+  // The scene's keys win: one motion key, the glare list and the flicker amplitude; the rest stays the preset's.
+  scene("  preset: realistic\n  motion: {tremor_px: 0}\n  glare: []\n  flicker: {amplitude: 0.01}\n" + base);
+  r = run({"simulate", "scene.yaml", "--out", "sim2", "--no-cache", "--no-presses"});
+  ASSERT_EQ(r.exit_code, 0) << r;
+  p = nlohmann::json::parse(read_text(work() / "sim2" / "truth.json"))["preset"];
+  EXPECT_DOUBLE_EQ(p["motion"]["tremor_px"].get<double>(), 0.0);
+  EXPECT_DOUBLE_EQ(p["motion"]["drift_px_per_s"].get<double>(), 0.5);
+  EXPECT_DOUBLE_EQ(p["flicker"]["amplitude"].get<double>(), 0.01);
+  EXPECT_DOUBLE_EQ(p["flicker"]["drift_hz_per_s"].get<double>(), 0.2);
+  EXPECT_EQ(p["glare"].size(), 0u);
+  EXPECT_EQ(p["exposure"]["steps"].size(), 2u);
+  // Without a preset: none, nothing added.
+  scene(base);
+  r = run({"simulate", "scene.yaml", "--out", "sim3", "--no-cache", "--no-presses"});
+  ASSERT_EQ(r.exit_code, 0) << r;
+  p = nlohmann::json::parse(read_text(work() / "sim3" / "truth.json"))["preset"];
+  EXPECT_EQ(p["name"], "none");
+  EXPECT_DOUBLE_EQ(p["motion"]["tremor_px"].get<double>(), 0.0);
+  EXPECT_EQ(p["glare"].size(), 0u);
+  // An unknown preset: exit 2, the key named, nothing written.
+  scene("  preset: cinematic\n" + base);
+  expect_input_error({"simulate", "scene.yaml", "--out", "sim4"}, {"line 7", "simulation.preset", "cinematic", "realistic"});
+  EXPECT_FALSE(fs::exists(work() / "sim4"));
+}

@@ -322,6 +322,7 @@ struct AssessSection {
 /// (lists of sources, presets): its ranges are checked as it is read, with the
 /// line; the modules' validate() checks the combinations.
 struct SimulationSection {
+  std::string preset = "none";  ///< realistic: every real-capture effect at a plausible strength (cli/scene_simulation.cpp)
   std::uint64_t seed = 1;
   std::string out;
   sim::VideoFormat format = sim::VideoFormat::huffyuv;

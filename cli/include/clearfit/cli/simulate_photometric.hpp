@@ -7,7 +7,9 @@
 
 namespace clearfit::cli {
 
-/// The photometric effects of a `simulation:` section (none when it names none).
-sim::PhotometricEffects parse_photometric(const SceneReader& reader, const YAML::Node& simulation);
+/// The photometric effects of a `simulation:` section: `defaults` (a preset's;
+/// none by default) with each effect the section names replacing its default
+/// (a glare list or a steps list replaces the whole list).
+sim::PhotometricEffects parse_photometric(const SceneReader& reader, const YAML::Node& simulation, sim::PhotometricEffects defaults = {});
 
 }  // namespace clearfit::cli
