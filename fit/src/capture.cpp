@@ -104,6 +104,18 @@ cv::Mat deep_frame(cv::Mat& frame) {
   return deep;
 }
 
+/// Closes the registration's reference and puts the motions of the frames averaged into it,
+/// measured again against the whole average, in their place (the first frames of `sums`; their
+/// integer shifts stay as accumulated, the sub-pixel rest follows the new motion).
+void revise_reference_frames(MotionRegistration& registration, CaptureSums& sums) {
+  for (const auto& [frame, r] : registration.close_reference()) {
+    if (!r.found || frame < 0 || static_cast<std::size_t>(frame) >= sums.motion.size()) continue;
+    sums.motion[frame] = r.motion;
+    sums.shift_px[frame] = r.motion.t;
+    sums.patches_used[frame] = r.patches_used;
+  }
+}
+
 }  // namespace
 
 CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadOptions& options,
@@ -158,23 +170,20 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
     motion.centre = roi_centre;
     int patches_used = 0;
     tbb::task_group registration;
+    // The first frames (registration.hpp: reference_frames) are averaged into the reference as they come.
+    const bool building = registration_of && registration_of->reference_open();
     if (registration_of) {
-      if (!registration_of->has_reference()) {
-        registration_of->set_reference(frame);
-        patches_used = static_cast<int>(registration_of->patches().size());
-      } else {
-        // Started from the previous frame's motion.
-        const Similarity start = sums.motion.empty() ? motion : sums.motion.back();
-        registration.run([&motion, &patches_used, registration_of, &frame, start] {
-          const RegistrationResult r = registration_of->measure(frame, start);
-          // Every patch left out for glare: the frame cannot say how it moved; it keeps the
-          // previous frame's motion, and the glare check refuses a capture that is mostly glare.
-          const bool all_glare = !r.found && !r.glare.empty() &&
-                                 std::all_of(r.glare.begin(), r.glare.end(), [](std::uint8_t g) { return g != 0; });
-          motion = all_glare ? start : r.motion;
-          patches_used = r.patches_used;
-        });
-      }
+      // Started from the previous frame's motion.
+      const Similarity start = sums.motion.empty() ? motion : sums.motion.back();
+      registration.run([&motion, &patches_used, registration_of, &frame, start, building] {
+        const RegistrationResult r = building ? registration_of->add_to_reference(frame, start) : registration_of->measure(frame, start);
+        // Every patch left out for glare: the frame cannot say how it moved; it keeps the
+        // previous frame's motion, and the glare check refuses a capture that is mostly glare.
+        const bool all_glare = !r.found && !r.glare.empty() &&
+                               std::all_of(r.glare.begin(), r.glare.end(), [](std::uint8_t g) { return g != 0; });
+        motion = all_glare ? start : r.motion;
+        patches_used = r.patches_used;
+      });
     }
     const int chunk = n / options.chunk_frames;
     if (chunk >= static_cast<int>(sums.chunk_sum.size())) {
@@ -290,12 +299,15 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
     sums.motion.push_back(motion);
     sums.patches_used.push_back(patches_used);
     sums.applied_shift.push_back(d);
+    if (building && !registration_of->reference_open()) revise_reference_frames(*registration_of, sums);
     sums.work_ms += ms_since(t_work);
     ++n;
     if (options.progress) options.progress(n, info.frames);
     sums.last_frame = frame;
   }
   if (n == 0) throw InputError(source.string(), "", "holds no frames", "check the " + role + " capture");
+  // A capture shorter than the reference's frames: the reference is what it holds.
+  if (registration_of && registration_of->has_reference() && registration_of->reference_open()) revise_reference_frames(*registration_of, sums);
   sums.info.frames = n;
   return sums;
 }

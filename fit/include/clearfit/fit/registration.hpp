@@ -5,22 +5,27 @@
 // that changes green most and red least (absorption k_R ≈ 0.2·k_G, SKIN.md).
 // Each patch is read as ln R − ρ·ln G (ρ = green_ratio ≈ k_R/k_G): the
 // blanching cancels, exposure becomes a constant, and the skin's texture
-// (albedo, common to the channels) stays at 1 − ρ of its contrast; at half
-// resolution (pyrDown), minus its Gaussian blur at `highpass_sigma_px` (the
-// fall-off and what is left of slow fields drop out).
+// (albedo, common to the channels) stays at 1 − ρ of its contrast; minus its
+// Gaussian blur at `highpass_sigma_px` taken over the seen skin only
+// (normalised convolution), so the fall-off, slow fields and the part's edge drop out.
 //
 // Where. A grid × grid set of patches spread over the region of interest (on the skin);
 // a patch whose reference or current frame shows glare (glare_fraction) is
-// left out of that frame. Each patch's translation is found to a fraction of a
-// pixel by enhanced correlation (ECC, translation) of the filtered patch, started
-// from the previous frame's motion.
+// left out of that frame. The reference is the average of the first
+// `reference_frames` frames, each moved back by its measured motion.
+//
+// How each patch is found. Gauss–Newton on the zero-mean, gain-normalised difference
+// between the template and the frame sampled (exact bicubic) where the current motion
+// puts it, turn and scale included; the Jacobian is the mean of both gradients.
 //
 // How they combine. A similarity transform of the image (translation,
 // rotation, scale about the roi's centre) is fitted to the patch translations
 // by iteratively reweighted least squares with Tukey's biweight on residuals
 // scaled by their robust spread: a patch that blanching, glare or a sliding
-// fold disturbs more than the others is rejected. With fewer than three patches
-// left, translation only (their reweighted mean).
+// fold disturbs more than the others is rejected. A turn and scale within
+// `turn_significance` standard errors, or with fewer than six patches kept, are
+// dropped (translation only: their reweighted mean). When the turn or scale
+// changed the patches' sampling, they are measured again with it.
 #include <clearfit/geometry/mesh.hpp>
 #include <opencv2/core.hpp>
 
@@ -34,13 +39,21 @@ struct RegistrationOptions {
   /// The image registered is ln R − ρ·ln G: blanching changes ln R by about ρ = k_R/k_G ≈ 0.2 of
   /// ln G (SKIN.md), so it cancels, while the texture (albedo, common to the channels) stays at 1 − ρ.
   double green_ratio = 0.2;
-  int downsample = 2;               ///< 1: full resolution; 2: half (pyrDown)
+  /// 1: full resolution; 2: half (pyrDown). Half resolution folds texture finer than 4 px
+  /// (fingerprint ridges at about 12 px/mm) back into the image as patterns that do not move
+  /// with the skin (measured: 0.3–0.8 px errors on the slab scene), so full resolution is the default.
+  int downsample = 1;
   double smooth_sigma_px = 0;       ///< Gaussian against noise, px at the registered resolution (0: none)
-  double highpass_sigma_px = 8.0;   ///< Gaussian subtracted (fall-off, slow fields), px at the registered resolution
-  int iterations = 20;              ///< ECC iterations per patch at most
+  double highpass_sigma_px = 16.0;  ///< Gaussian subtracted (fall-off, slow fields), px at the registered resolution
+  int iterations = 30;              ///< Gauss–Newton iterations per patch at most
+  /// Frames averaged into the reference (each registered against the average so far and
+  /// moved back before it is added): the reference's noise falls as 1/√n.
+  int reference_frames = 8;
   double max_glare_fraction = 0.01; ///< a patch with more glare pixels than this (glare_fraction) is left out
   double tukey_c = 4.685;           ///< Tukey biweight constant, in units of the residuals' robust σ
   double min_sigma_px = 0.02;       ///< floor of that σ (noise-free patches agree to better than this)
+  /// A fitted turn and scale smaller than this many of their standard errors are dropped (translation only).
+  double turn_significance = 3.0;
   void validate() const;            ///< throws std::invalid_argument naming the field
 };
 
@@ -69,16 +82,30 @@ struct RegistrationResult {
   std::vector<std::uint8_t> glare;   ///< per patch: left out for glare
 };
 
-/// The reference frame's filtered patches; measures later frames against it.
-/// Shared by both captures of an assessment so that both align to one frame.
+/// The reference's filtered patches; measures later frames against it. Shared by
+/// both captures of an assessment so that both align to one reference.
+///
+/// The reference is the first frame, then the average of the first `reference_frames`
+/// frames given to add_to_reference(), each moved back by its measured motion; the
+/// motions of those frames are measured again against the whole average when it is
+/// closed (close_reference()).
 class MotionRegistration {
  public:
   /// Patches of a grid over `roi` (clipped to the image; a patch that would leave it is moved inside).
   /// `seen` (optional, CV_8U, roi size): the pixels that see the skin; each grid cell's patch is
   /// moved within its cell to see the most skin, and left out when less than 3/4 of it does.
   MotionRegistration(cv::Size image, const cv::Rect& roi, const RegistrationOptions& options, const cv::Mat& seen = {});
-  bool has_reference() const { return !reference_.empty(); }
+  bool has_reference() const { return frames_averaged_ > 0; }
+  /// Starts the reference with `bgr` (its motion is the identity); drops any earlier one.
   void set_reference(const cv::Mat& bgr);
+  /// While the reference is open: `bgr`'s motion against the average so far (started from
+  /// `start`), and `bgr` moved back by it added to the average. The first call sets the reference.
+  RegistrationResult add_to_reference(const cv::Mat& bgr, const Similarity& start);
+  /// True until the reference is set and while add_to_reference() still averages (fewer than reference_frames frames so far).
+  bool reference_open() const { return !has_reference() || (open_ && frames_averaged_ < options_.reference_frames); }
+  /// Ends the averaging: the frames averaged, measured again against the whole average, each
+  /// with its place among the add_to_reference() calls (0: the first).
+  std::vector<std::pair<int, RegistrationResult>> close_reference();
   /// `bgr`'s motion against the reference, started from `start` (e.g. the previous frame's).
   RegistrationResult measure(const cv::Mat& bgr, const Similarity& start) const;
   const std::vector<cv::Rect>& patches() const { return rects_; }
@@ -87,19 +114,47 @@ class MotionRegistration {
   const RegistrationOptions& options() const { return options_; }
 
  private:
+  static constexpr int kApron = 2;  ///< template border kept for its gradients, registration px
   struct Patch {
-    cv::Mat t, tx, ty;          ///< filtered reference (at the registered resolution) and its gradients
-    double h[3] = {0, 0, 0};    ///< Hessian Σ tx², Σ tx·ty, Σ ty²
+    cv::Rect area;                  ///< the template, registration px
+    cv::Mat sum;                    ///< sum of the frames averaged, with the apron (CV_32F)
+    int count = 0;                  ///< frames in `sum`
+    cv::Mat t, tx, ty;              ///< zero-mean average and its gradients (area size), 0 off the skin
+    cv::Mat weight;                 ///< CV_8U (area size): the template's pixels that count (on the skin)
+    double h[3] = {0, 0, 0};        ///< Hessian Σ tx², Σ tx·ty, Σ ty²
     bool usable = false;
   };
-  /// Filtered half-resolution image of `rect` moved by `offset` (full-res px, even), with a border.
-  cv::Mat filtered(const cv::Mat& bgr, const cv::Rect& rect, cv::Point& origin_half) const;
+  /// One frame's filtered region around each patch (registration px, origin in the same).
+  struct Region {
+    cv::Mat f;
+    cv::Mat skin;                   ///< CV_8U: the pixels of `f` that see the skin (empty: all)
+    cv::Point origin;
+    bool glare = false;
+  };
+  using Regions = std::vector<Region>;
+  /// Filtered image (registration resolution) over `area` (registration px, clipped to the image),
+  /// the skin's high-pass taken over the skin only (the seen mask moved by `shift`, full-resolution px).
+  Region filtered(const cv::Mat& bgr, const cv::Rect& area, cv::Point shift) const;
+  /// Each patch's region of `bgr` where `expected` puts it, with a margin.
+  Regions read(const cv::Mat& bgr, const Similarity& expected) const;
+  /// The motion of the frame whose regions these are; with `warped`, each patch's frame moved
+  /// back onto its template (with the apron; empty when the patch was not kept).
+  RegistrationResult solve(const Regions& regions, const Similarity& start, std::vector<cv::Mat>* warped) const;
+  /// Adds the frame (moved back: `warped`) to the averages and refreshes the templates.
+  void accumulate(const std::vector<cv::Mat>& warped);
   cv::Size image_;
   cv::Rect roi_;
   RegistrationOptions options_;
   std::vector<cv::Rect> rects_;
-  std::vector<Patch> reference_;
-  int border_half_ = 0;
+  std::vector<Patch> patches_;
+  cv::Mat seen_;                    ///< CV_8U, image size: the skin (eroded); empty: all
+  int frames_averaged_ = 0;
+  bool open_ = false;
+  std::vector<Regions> kept_;       ///< the averaged frames' regions, until close_reference()
+  std::vector<Similarity> kept_motion_;
+  std::vector<int> kept_call_;      ///< each kept frame's place among the add_to_reference() calls
+  int calls_ = 0;
+  int border_ = 0;                  ///< filter support, registration px
 };
 
 }  // namespace clearfit
