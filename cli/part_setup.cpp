@@ -39,7 +39,13 @@ std::unique_ptr<LoadedPart> load_part_scene(const Scene& scene, bool need_chart,
   part->contact = select_contact(part->mesh, *selector);
   part->camera = read_cameramodel(o.camera);
   part->camera_source = o.camera;
-  part->cam_from_part = o.pose.empty() ? part->camera.cam_from_part : read_pose_json(o.pose);
+  if (o.pose.empty()) {
+    part->cam_from_part = part->camera.cam_from_part;
+  } else {
+    PoseFile pose = read_pose_file(o.pose);
+    part->cam_from_part = pose.cam_from_part;
+    part->pose_covariance = pose.covariance;
+  }
   part->pose_source = o.pose.empty() ? o.camera + " (extrinsics)" : o.pose;
   part->map_options = scene.map_options();
   const std::string& chart = scene.map.chart;

@@ -6,7 +6,7 @@
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/camera/camera_model.hpp>
 #include <clearfit/camera/detect.hpp>
-#include <clearfit/camera/pose.hpp>
+#include <clearfit/camera/pose_file.hpp>
 #include <clearfit/camera/tag_pose.hpp>
 #include <clearfit/error.hpp>
 #include <clearfit/geometry/ray_index.hpp>
@@ -104,7 +104,7 @@ Run add_pose(CLI::App& app) {
                 pose.sigma_translation_mm.x(), pose.sigma_translation_mm.y(), pose.sigma_translation_mm.z(),
                 pose.sigma_rotation_deg.x(), pose.sigma_rotation_deg.y(), pose.sigma_rotation_deg.z());
     for (const auto& n : pose.notes) std::printf("note: %s\n", n.c_str());
-    if (!o->out.empty()) write_pose_json(pose.cam_from_part, o->out);
+    if (!o->out.empty()) write_pose_json(pose.cam_from_part, o->out, pose.covariance);
     if (!o->write_camera.empty()) {
       CameraModel with = camera;
       with.cam_from_part = pose.cam_from_part;

@@ -1,5 +1,6 @@
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/camera/pose.hpp>
+#include <clearfit/camera/pose_file.hpp>
 #include <clearfit/error.hpp>
 
 #include <Eigen/Geometry>
@@ -99,9 +100,43 @@ Eigen::Vector3d read_vector3(const nlohmann::json& parent, const char* key, cons
   return v;
 }
 
+/// The optional uncertainty keys: "covariance" (6×6) or else "sigma" (independent 1-σ).
+std::optional<PoseCovariance> read_pose_covariance(const nlohmann::json& j, const std::string& file) {
+  if (j.contains("covariance")) {
+    const auto& c = j["covariance"];
+    const std::string element = "key 'covariance'";
+    if (!c.is_array() || c.size() != 6)
+      throw InputError(file, element, "must be 6 rows of 6 numbers (rotation about the camera axes in rad, then translation in mm)");
+    PoseCovariance m;
+    for (int r = 0; r < 6; ++r) {
+      if (!c[r].is_array() || c[r].size() != 6) throw InputError(file, element + " row " + std::to_string(r + 1), "must hold 6 numbers");
+      for (int k = 0; k < 6; ++k) {
+        if (!c[r][k].is_number() || !std::isfinite(c[r][k].get<double>()))
+          throw InputError(file, element + " row " + std::to_string(r + 1), "must hold 6 finite numbers, found " + c[r].dump());
+        m(r, k) = c[r][k].get<double>();
+      }
+    }
+    if ((m - m.transpose()).cwiseAbs().maxCoeff() > 1e-9 * std::max(1e-30, m.cwiseAbs().maxCoeff()) || (m.diagonal().array() < 0).any())
+      throw InputError(file, element, "is not a covariance (symmetric, with a non-negative diagonal)",
+                       "write the pose with `clearfit pose --out`, or drop the key");
+    return m;
+  }
+  if (!j.contains("sigma")) return std::nullopt;
+  const auto& s = j["sigma"];
+  if (!s.is_object()) throw InputError(file, "key 'sigma'", "must be an object {\"rotation_deg\": [3], \"translation_mm\": [3]}");
+  const Eigen::Vector3d r = read_vector3(s, "rotation_deg", file, "sigma"), t = read_vector3(s, "translation_mm", file, "sigma");
+  if ((r.array() < 0).any() || (t.array() < 0).any())
+    throw InputError(file, "key 'sigma'", "must hold 1-sigma values of 0 or more");
+  PoseCovariance m = PoseCovariance::Zero();
+  for (int a = 0; a < 3; ++a) m(a, a) = std::pow(r[a] * M_PI / 180, 2), m(a + 3, a + 3) = t[a] * t[a];
+  return m;
+}
+
 }  // namespace
 
-Rigid3 read_pose_json(const std::filesystem::path& path) {
+Rigid3 read_pose_json(const std::filesystem::path& path) { return read_pose_file(path).cam_from_part; }
+
+PoseFile read_pose_file(const std::filesystem::path& path) {
   const std::string file = path.string();
   std::ifstream in(path, std::ios::binary);
   if (!in) throw InputError(file, "", "cannot open the pose file", "check the path");
@@ -129,10 +164,12 @@ Rigid3 read_pose_json(const std::filesystem::path& path) {
   const auto& p = j["cam_from_part"];
   const Eigen::Vector3d r = read_vector3(p, "r", file, "cam_from_part");
   const Eigen::Vector3d t = read_vector3(p, "t", file, "cam_from_part");
-  return Rigid3::from_rt({r.x(), r.y(), r.z(), t.x(), t.y(), t.z()});
+  return {Rigid3::from_rt({r.x(), r.y(), r.z(), t.x(), t.y(), t.z()}), read_pose_covariance(j, file)};
 }
 
-void write_pose_json(const Rigid3& cam_from_part, const std::filesystem::path& path) {
+namespace {
+
+void write_pose(const Rigid3& cam_from_part, const std::filesystem::path& path, const std::optional<PoseCovariance>& covariance) {
   const auto rt = cam_from_part.to_rt();
   for (double x : rt)
     if (!std::isfinite(x)) throw std::invalid_argument("write_pose_json: the pose is not finite");
@@ -140,7 +177,31 @@ void write_pose_json(const Rigid3& cam_from_part, const std::filesystem::path& p
   j["schema"] = kPoseSchema;
   j["cam_from_part"] = {{"r", {rt[0], rt[1], rt[2]}}, {"t", {rt[3], rt[4], rt[5]}}};
   j["units"] = "mm";
+  if (covariance) {
+    if (!covariance->allFinite()) throw std::invalid_argument("write_pose_json: the covariance is not finite");
+    const auto sd = [&](int a) { return std::sqrt(std::max(0.0, (*covariance)(a, a))); };
+    j["sigma"] = {{"rotation_deg", {sd(0) * 180 / M_PI, sd(1) * 180 / M_PI, sd(2) * 180 / M_PI}},
+                  {"translation_mm", {sd(3), sd(4), sd(5)}}};
+    nlohmann::json rows = nlohmann::json::array();
+    for (int r = 0; r < 6; ++r) {
+      nlohmann::json row = nlohmann::json::array();
+      for (int k = 0; k < 6; ++k) row.push_back(0.5 * ((*covariance)(r, k) + (*covariance)(k, r)));
+      rows.push_back(row);
+    }
+    j["covariance"] = rows;
+  }
   write_file_atomically(path, j.dump(2) + "\n");
 }
+
+}  // namespace
+
+void write_pose_json(const Rigid3& cam_from_part, const std::filesystem::path& path) {
+  write_pose(cam_from_part, path, std::optional<PoseCovariance>());
+}
+
+void write_pose_json(const Rigid3& cam_from_part, const std::filesystem::path& path, const PoseCovariance& covariance) {
+  write_pose(cam_from_part, path, std::optional<PoseCovariance>(covariance));
+}
+
 
 }  // namespace clearfit

@@ -141,6 +141,57 @@ std::vector<float> vertex_values(const ChartField& field, const Chart& chart, do
   return out;
 }
 
+/// Per texel, 1-σ (mm, per axis) of where the texel's skin lies across the camera's line of sight: a pose
+/// error (δθ about the camera axes, δt) moves a point p of the part (camera frame) by δθ × (p − t) + δt.
+/// The lateral shift stands for the shift on the skin (the skin's tilt to the ray and refraction ignored).
+ChartField position_sigma(const ChartRaster& raster, const Rigid3& cam_from_part, const PoseCovariance& covariance) {
+  ChartField out{raster.grid, std::vector<float>(raster.grid.size(), kNaN)};
+  for (std::size_t k = 0; k < raster.grid.size(); ++k) {
+    if (raster.face[k] < 0) continue;
+    const Vec3 p = cam_from_part.apply(raster.point[k]), v = p - cam_from_part.translation;
+    Eigen::Matrix<double, 3, 6> J;
+    J << 0, v.z(), -v.y(), 1, 0, 0,  //  δθ × v = −[v]× δθ
+        -v.z(), 0, v.x(), 0, 1, 0,   //
+        v.y(), -v.x(), 0, 0, 0, 1;
+    const Eigen::Matrix3d moved = J * covariance * J.transpose();
+    const Vec3 u = p.normalized();
+    const Eigen::Matrix3d across = Eigen::Matrix3d::Identity() - u * u.transpose();
+    out.value[k] = static_cast<float>(std::sqrt(std::max(0.0, (across * moved * across).trace() / 2)));
+  }
+  return out;
+}
+
+/// The signal's σ: its noise and, where the position is uncertain, |∇y|·σ_pos in quadrature (∇y by central
+/// differences on the chart, one-sided beside unseen texels).
+ChartField signal_sigma(const BlanchingSignal& signal, const ChartField& position_mm) {
+  ChartField out = signal.sigma_y;
+  if (position_mm.value.empty()) return out;
+  const ChartGrid& g = signal.y.grid;
+  const auto& y = signal.y.value;
+  for (int j = 0; j < g.height; ++j)
+    for (int i = 0; i < g.width; ++i) {
+      const auto k = g.index(i, j);
+      if (!std::isfinite(y[k]) || !std::isfinite(position_mm.value[k])) continue;
+      const double gradient = gradient_norm(signal.y, i, j);
+      out.value[k] = static_cast<float>(std::hypot(static_cast<double>(out.value[k]), gradient * position_mm.value[k]));
+    }
+  return out;
+}
+
+/// Adds the position's σ to each hotspot's centre of pressure: a pose error shifts the whole place
+/// (two lateral axes, mean σ_pos² over the place's texels), in quadrature with the noise's term.
+void add_position_to_centres(std::vector<Hotspot>& hotspots, const std::vector<int>& labels, const ChartField& position_mm) {
+  if (position_mm.value.empty()) return;
+  std::vector<double> sum(hotspots.size() + 1, 0.0);
+  std::vector<long long> n(hotspots.size() + 1, 0);
+  for (std::size_t k = 0; k < labels.size(); ++k)
+    if (labels[k] > 0 && labels[k] <= static_cast<int>(hotspots.size()) && std::isfinite(position_mm.value[k]))
+      sum[labels[k]] += position_mm.value[k] * position_mm.value[k], ++n[labels[k]];
+  for (Hotspot& h : hotspots)
+    if (n[h.id] > 0 && std::isfinite(h.centre_of_pressure_sigma_mm))
+      h.centre_of_pressure_sigma_mm = std::sqrt(h.centre_of_pressure_sigma_mm * h.centre_of_pressure_sigma_mm + 2 * sum[h.id] / n[h.id]);
+}
+
 }  // namespace
 
 Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& captures,
@@ -243,6 +294,8 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
   for (const auto& w : a.signal.warnings) a.warnings.push_back(w);
   const ChartGrid& g = a.signal.y.grid;
   a.raster = rasterize_chart(*scene.mesh, *scene.chart, g);
+  if (scene.pose_covariance) a.position_sigma_mm = position_sigma(a.raster, scene.cam_from_part, *scene.pose_covariance);
+  a.signal_sigma = signal_sigma(a.signal, a.position_sigma_mm);
 
   // Pressure.
   HotspotOptions ho;
@@ -255,7 +308,7 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
     a.pressure = {g, std::vector<float>(g.size(), kNaN)};
     a.pressure_sigma = {g, std::vector<float>(g.size(), kNaN)};
     a.pressure_status.assign(g.size(), static_cast<std::uint8_t>(PressureStatus::invalid));
-    calibration->invert(a.signal.y.value, a.signal.sigma_y.value, a.pressure.value, a.pressure_sigma.value, a.pressure_status);
+    calibration->invert(a.signal.y.value, a.signal_sigma.value, a.pressure.value, a.pressure_sigma.value, a.pressure_status);
     // Lossy captures: the calibration's detection limit is its presses' noise, not the compression's;
     // a texel not significant against this capture's own noise (spatial term included) is below detection.
     if (bo.spatial_noise)
@@ -295,9 +348,10 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
     a.thresholds = o.signal_thresholds;
     if (a.thresholds.empty()) a.thresholds = {o.signal_threshold_sigmas * std::max(a.signal.noise_sigma, 1e-6)};
     ho.thresholds = a.thresholds;
-    a.hotspots = find_hotspots(a.signal.y, &a.signal.sigma_y, nullptr, a.raster, ho, &a.hotspot_labels, scene.mesh);
+    a.hotspots = find_hotspots(a.signal.y, &a.signal_sigma, nullptr, a.raster, ho, &a.hotspot_labels, scene.mesh);
     a.warnings.push_back("no pressure calibration: the report shows the blanching signal and where it is significant, not kPa");
   }
+  add_position_to_centres(a.hotspots, a.hotspot_labels, a.position_sigma_mm);
   flag_hotspots_at_mask(a.hotspots, a.hotspot_labels, a.glare_texels, g);
   for (const Hotspot& h : a.hotspots)
     if (h.touches_mask)
@@ -355,7 +409,12 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
   // within two camera pixels of it (the texels between it and the first seen pixel are unseen).
   const double pixels = static_cast<double>(std::max<long long>(1, by_status[static_cast<int>(PixelStatus::valid)]));
   const double reach = std::max(kVertexReachTexels, 2 * std::sqrt(c.seen_area_mm2 / pixels) / g.texel_mm);
-  if (a.calibrated) a.vertex_pressure = vertex_values(a.pressure, *scene.chart, reach);
+  if (a.calibrated) {
+    a.vertex_pressure = vertex_values(a.pressure, *scene.chart, reach);
+    a.vertex_pressure_sigma = vertex_values(a.pressure_sigma, *scene.chart, reach);
+    for (std::size_t v = 0; v < a.vertex_pressure_sigma.size(); ++v)  // no σ for a bound (below detection) or no value
+      if (!(a.vertex_pressure[v] > 0)) a.vertex_pressure_sigma[v] = kNaN;
+  }
   a.vertex_signal = vertex_values(a.signal.y, *scene.chart, reach);
   if (c.contact_area_mm2 > 0 && c.seen_area_mm2 < 0.5 * c.contact_area_mm2)
     a.warnings.push_back("the camera sees only " + fmt(100 * c.seen_area_mm2 / c.contact_area_mm2) +

@@ -78,6 +78,19 @@ Eigen::Vector3d closest_barycentric(const Vec3& p, const Vec3& a, const Vec3& b,
   return {1 - v - w, v, w};
 }
 
+/// |∇v| at texel (i, j) per mm: central differences, one-sided beside undefined texels; 0 when neither side is.
+double gradient_norm(const ChartField& f, int i, int j) {
+  const ChartGrid& g = f.grid;
+  auto along = [&](int di, int dj) {
+    auto at = [&](int x, int y) { return x >= 0 && y >= 0 && x < g.width && y < g.height ? f.value[g.index(x, y)] : NAN; };
+    const float here = at(i, j), hi = at(i + di, j + dj), lo = at(i - di, j - dj);
+    const bool ahead = std::isfinite(hi), back = std::isfinite(lo);
+    const int steps = ahead + back;
+    return steps ? ((ahead ? hi : here) - (back ? lo : here)) / (steps * g.texel_mm) : 0.0;
+  };
+  return std::hypot(along(1, 0), along(0, 1));
+}
+
 namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
@@ -115,6 +128,10 @@ struct LevelSums {
 struct PlaceSums {
   double area = 0, half_peak_area = 0, unseen = 0, sum_w = 0, sum_vf = 0, peak = -1e300, peak_sigma = 0;
   Vec3 c = Vec3::Zero(), cp = Vec3::Zero();
+  // The centre of pressure's variance: Σ k (x − c)² with k = w σ² A (A: the area over which the texel's noise is
+  // shared), kept as moments Σk, Σk x, Σk |x|².
+  double k0 = 0, k2 = 0;
+  Vec3 k1 = Vec3::Zero();
   Vec2 uv = Vec2::Zero();
   std::set<int> faces;
   long long texels = 0, flagged = 0;
@@ -186,6 +203,17 @@ std::vector<Hotspot> find_hotspots(const ChartField& field, const ChartField* si
         if (v < thresholds[t]) continue;
         L.area += area, L.sum += v * area, L.sigma_sum += s * area, ++L.texels;
       }
+      if (std::isfinite(s) && s > 0 && std::abs(v - thresholds.front()) < s && raster.face[k] >= 0) {
+        // The outline moves with the noise by σ/|∇v| and takes texels of value t with it: over the band
+        // |v − t| < σ (a line of density 1/(2σ)) each texel adds w t² σ ℓ / (2|∇v|) times (x − c)²/(Σ w v)², its
+        // noise shared along the outline over ℓ = √(correlation area).
+        const double gradient = gradient_norm(field, i, j);
+        if (gradient > 0) {
+          const double t = thresholds.front(), ell = std::sqrt(std::max(area, 1.0 / options.samples_per_mm2));
+          const double kk = area * t * t * s * ell / (2 * gradient);
+          a.k0 += kk, a.k1 += kk * raster.point[k], a.k2 += kk * raster.point[k].squaredNorm();
+        }
+      }
       if (v < thresholds.front()) continue;  // within σ of the outline: in the lowest level's σ only
       a.area += area;
       a.texels += 1;
@@ -195,6 +223,11 @@ std::vector<Hotspot> find_hotspots(const ChartField& field, const ChartField* si
         a.sum_w += area;
         a.sum_vf += v * area;
         a.faces.insert(raster.face[k]);
+        if (std::isfinite(s)) {
+          // ∂c/∂v_i = w_i (x_i − c) / Σ w v; neighbours within the correlation area 1/samples_per_mm2 move together.
+          const double kk = area * s * s * std::max(area, 1.0 / options.samples_per_mm2);
+          a.k0 += kk, a.k1 += kk * raster.point[k], a.k2 += kk * raster.point[k].squaredNorm();
+        }
       }
       a.uv += area * g.uv(i, j);
       if (v > a.peak) a.peak = v, a.peak_sigma = s;
@@ -239,6 +272,11 @@ std::vector<Hotspot> find_hotspots(const ChartField& field, const ChartField* si
       h.centroid_mean_mm = a.c / a.sum_w;
       h.centroid_mm = onto_surface(h.centroid_mean_mm, a.faces, raster, mesh);
       h.centre_of_pressure_mm = onto_surface(std::abs(a.sum_vf) > 0 ? Vec3(a.cp / a.sum_vf) : h.centroid_mean_mm, a.faces, raster, mesh);
+      if (sigma && std::abs(a.sum_vf) > 0) {
+        const Vec3 cop = a.cp / a.sum_vf;
+        const double trace = a.k2 - 2 * cop.dot(a.k1) + cop.squaredNorm() * a.k0;
+        h.centre_of_pressure_sigma_mm = std::sqrt(std::max(0.0, trace)) / std::abs(a.sum_vf);
+      }
     } else {
       h.centroid_mm = h.centroid_mean_mm = h.centre_of_pressure_mm = Vec3::Constant(kNaN);
     }

@@ -106,6 +106,26 @@ void write_png(const cv::Mat& image, const std::filesystem::path& path) {
   write_file_atomically(path, std::string(bytes.begin(), bytes.end()));
 }
 
+/// The pose and how its uncertainty entered the σ: the largest skin position σ over the seen texels (mm, per
+/// axis across the line of sight) and the largest rotation σ; null and "unknown" without a pose covariance.
+json pose_json(const Assessment& a, const AssessmentScene& scene, const AssessmentContext& c) {
+  json j = {{"source", c.pose_source}, {"uncertainty_mm", nullptr}, {"uncertainty_deg", nullptr}};
+  if (!scene.pose_covariance || a.position_sigma_mm.value.empty()) {
+    j["position_uncertainty"] = "unknown: the pose file carries no covariance (write it with `clearfit pose --out`), so the σ "
+                                "has no term for where on the skin each texel lies";
+    return j;
+  }
+  double worst = 0;
+  for (std::size_t k = 0; k < a.position_sigma_mm.value.size(); ++k)
+    if (std::isfinite(a.signal.y.value[k]) && std::isfinite(a.position_sigma_mm.value[k]))
+      worst = std::max(worst, static_cast<double>(a.position_sigma_mm.value[k]));
+  const auto& C = *scene.pose_covariance;
+  j["uncertainty_mm"] = worst;
+  j["uncertainty_deg"] = std::sqrt(std::max({C(0, 0), C(1, 1), C(2, 2), 0.0})) * 180 / M_PI;
+  j["position_uncertainty"] = "from the pose file's covariance: in the σ of every texel as |∇signal| × the skin position's σ";
+  return j;
+}
+
 }  // namespace
 
 json assessment_report_json(const Assessment& a, const AssessmentScene& scene, const AssessmentContext& c) {
@@ -126,6 +146,7 @@ json assessment_report_json(const Assessment& a, const AssessmentScene& scene, c
               {"centroid_mm", vec(h.centroid_mm)},
               {"centroid_mean_mm", vec(h.centroid_mean_mm)},
               {"centre_of_pressure_mm", vec(h.centre_of_pressure_mm)},
+              {"centre_of_pressure_sigma_mm", num(h.centre_of_pressure_sigma_mm)},
               {"centroid_uv_mm", vec(h.centroid_uv_mm)},
               {"unseen_area_mm2", num(h.unseen_area_mm2)},
               {"unseen_share", num(seen_and_unseen > 0 ? h.unseen_area_mm2 / seen_and_unseen : 0.0)},
@@ -202,6 +223,7 @@ json assessment_report_json(const Assessment& a, const AssessmentScene& scene, c
                   {"skin_camera_png", "skin_camera.png"},
                   {"skin_chart_png", "skin_chart.png"},
                   {"pressure_npy", "pressure.npy"},
+                  {"pressure_sigma_npy", "pressure_sigma.npy"},
                   {"signal_npy", "signal.npy"},
                   {"chart_points_npy", "chart_points.npy"},
                   {"hotspots_csv", "hotspots.csv"},
@@ -272,7 +294,7 @@ json assessment_report_json(const Assessment& a, const AssessmentScene& scene, c
         {"range", {slo, shi}}}},
       {"calibration",
        {{"camera", {{"rms_px", nullptr}, {"source", c.camera_source}}},
-        {"pose", {{"source", c.pose_source}, {"uncertainty_mm", nullptr}, {"uncertainty_deg", nullptr}}},
+        {"pose", pose_json(a, scene, c)},
         {"pressure", pressure_cal}}},
       {"pressure", pressure},
       {"thresholds_kpa", a.calibrated ? json(a.thresholds) : json::array()},
@@ -304,7 +326,9 @@ std::vector<std::string> write_assessment_outputs(const Assessment& a, const Ass
     in.normals = &normals;
     in.chart = scene.chart;
     in.values = pressure_view ? a.vertex_pressure : a.vertex_signal;
-    in.scalars = {{"_PRESSURE_KPA", a.calibrated ? a.vertex_pressure : std::vector<float>(a.vertex_signal.size(), 0.f)},
+    const std::vector<float> zeros(a.vertex_signal.size(), 0.f);
+    in.scalars = {{"_PRESSURE_KPA", a.calibrated ? a.vertex_pressure : zeros},
+                  {"_PRESSURE_SIGMA_KPA", a.calibrated ? a.vertex_pressure_sigma : zeros},
                   {"_BLANCH", a.vertex_signal}};
     in.texture = pressure_view ? &a.pressure : &a.signal.y;
     in.quantity = pressure_view ? "pressure_kpa" : "signal";
@@ -351,7 +375,9 @@ std::vector<std::string> write_assessment_outputs(const Assessment& a, const Ass
   written.push_back("skin_chart.png");
   write_field_npy(a.calibrated ? a.pressure : a.signal.y, folder / "pressure.npy");
   write_field_npy(a.signal.y, folder / "signal.npy");
+  write_field_npy(a.calibrated ? a.pressure_sigma : a.signal.sigma_y, folder / "pressure_sigma.npy");
   written.push_back("pressure.npy");
+  written.push_back("pressure_sigma.npy");
   written.push_back("signal.npy");
   if (a.raster.grid.size() == a.signal.y.grid.size() && a.raster.point.size() == a.raster.grid.size()) {
     // Where each texel lies on the part (part frame, mm): profiles and plots in the part's own coordinates.

@@ -44,7 +44,7 @@ void write_hotspots_csv(const Assessment& a, const std::filesystem::path& path) 
   s << "id,peak" << unit << ",peak_sigma" << unit << ",mean" << unit << ",mean_sigma" << unit << ",area_mm2,half_peak_area_mm2";
   for (double t : a.thresholds) s << ",area_ge_" << threshold_name(t, a.calibrated) << "_mm2,area_sigma_ge_" << threshold_name(t, a.calibrated) << "_mm2";
   s << ",centroid_x_mm,centroid_y_mm,centroid_z_mm,centre_of_pressure_x_mm,centre_of_pressure_y_mm,centre_of_pressure_z_mm"
-       ",unseen_area_mm2,unseen_share,texels,saturated_texels,touches_glare\n";
+       ",centre_of_pressure_sigma_mm,unseen_area_mm2,unseen_share,texels,saturated_texels,touches_glare\n";
   for (const Hotspot& h : a.hotspots) {
     s << h.id << ',' << field(h.peak, digits) << ',' << field(h.peak_sigma, digits) << ',' << field(h.mean, digits) << ','
       << field(h.mean_sigma, digits) << ',' << field(h.area_mm2, 4) << ',' << field(h.half_peak_area_mm2, 4);
@@ -56,6 +56,7 @@ void write_hotspots_csv(const Assessment& a, const std::filesystem::path& path) 
     }
     for (const Vec3* p : {&h.centroid_mm, &h.centre_of_pressure_mm})
       for (int c = 0; c < 3; ++c) s << ',' << field((*p)[c], 4);
+    s << ',' << field(h.centre_of_pressure_sigma_mm, 4);
     const double both = h.area_mm2 + h.unseen_area_mm2;
     s << ',' << field(h.unseen_area_mm2, 4) << ',' << field(both > 0 ? h.unseen_area_mm2 / both : 0.0, 4) << ',' << h.texels << ','
       << h.flagged_texels << ',' << (h.touches_mask ? 1 : 0) << '\n';
@@ -66,14 +67,15 @@ void write_hotspots_csv(const Assessment& a, const std::filesystem::path& path) 
 void write_vertex_csv(const Assessment& a, const Mesh& mesh, const Chart& chart, const std::filesystem::path& path) {
   const std::vector<std::uint8_t> seen = vertex_seen(a, chart);
   write_file_atomically(path, [&](std::ostream& out) {
-    out << "vertex,x_mm,y_mm,z_mm,contact,seen,pressure_kpa,signal\n";
+    out << "vertex,x_mm,y_mm,z_mm,contact,seen,pressure_kpa,signal,pressure_sigma_kpa\n";
     for (std::size_t v = 0; v < mesh.vertices.size(); ++v) {
       const Vec3& p = mesh.vertices[v];
       const bool contact = v < chart.uv.size() && chart.uv[v].allFinite();
       const bool s = v < seen.size() && seen[v];
       out << v << ',' << field(p.x(), 5) << ',' << field(p.y(), 5) << ',' << field(p.z(), 5) << ',' << (contact ? 1 : 0) << ','
           << (s ? 1 : 0) << ',' << (s && a.calibrated ? field(a.vertex_pressure[v], 3) : "") << ','
-          << (s ? field(a.vertex_signal[v], 6) : "") << '\n';
+          << (s ? field(a.vertex_signal[v], 6) : "") << ','
+          << (s && a.calibrated && v < a.vertex_pressure_sigma.size() ? field(a.vertex_pressure_sigma[v], 3) : "") << '\n';
     }
   });
 }

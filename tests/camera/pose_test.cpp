@@ -1,6 +1,6 @@
 // Rigid3 against closed forms and Eigen's AngleAxis; pose JSON files; mrcal's
 // Python poseutils as an independent reference for compose/invert.
-#include <clearfit/camera/pose.hpp>
+#include <clearfit/camera/pose_file.hpp>
 #include <clearfit/error.hpp>
 
 #include <gtest/gtest.h>
@@ -176,6 +176,43 @@ TEST_F(TempDir, PoseJsonErrorsAreLocated) {
                     "cam_from_part.r", "missing");
   expect_pose_error(file("str.json", R"({"schema":"clearfit.pose/1","units":"mm","cam_from_part":{"r":[0,"a",0],"t":[0,0,1]}})"),
                     "cam_from_part.r", "finite numbers");
+}
+
+TEST_F(TempDir, PoseJsonCarriesItsCovariance) {
+  const Rigid3 pose = Rigid3::from_rt({0.1, -2.0, 0.7, 12.5, -3.25, 250});
+  Eigen::Matrix<double, 6, 6> a = Eigen::Matrix<double, 6, 6>::Random();
+  const PoseCovariance cov = 1e-4 * a * a.transpose();
+  write_pose_json(pose, dir_ / "with.json", cov);
+  const PoseFile back = read_pose_file(dir_ / "with.json");
+  ASSERT_TRUE(back.covariance.has_value());
+  EXPECT_LT((*back.covariance - cov).cwiseAbs().maxCoeff(), 1e-15);
+  // The 1-σ beside it, for people: √ of the diagonal, rotation in degrees.
+  const auto j = nlohmann::json::parse(std::ifstream(dir_ / "with.json"));
+  EXPECT_NEAR(j["sigma"]["rotation_deg"][1].get<double>(), std::sqrt(cov(1, 1)) * 180 / M_PI, 1e-12);
+  EXPECT_NEAR(j["sigma"]["translation_mm"][2].get<double>(), std::sqrt(cov(5, 5)), 1e-12);
+  // Without: none; with only "sigma": independent axes.
+  write_pose_json(pose, dir_ / "without.json");
+  EXPECT_FALSE(read_pose_file(dir_ / "without.json").covariance.has_value());
+  const auto only = read_pose_file(file("sigma.json", R"({"schema":"clearfit.pose/1","units":"mm","cam_from_part":{"r":[0,0,0],"t":[0,0,100]},
+    "sigma":{"rotation_deg":[0.1,0.2,0.3],"translation_mm":[0.01,0.02,0.5]}})"));
+  ASSERT_TRUE(only.covariance.has_value());
+  EXPECT_NEAR((*only.covariance)(1, 1), std::pow(0.2 * M_PI / 180, 2), 1e-18);
+  EXPECT_NEAR((*only.covariance)(5, 5), 0.25, 1e-15);
+  EXPECT_EQ((*only.covariance)(0, 3), 0.0);
+}
+
+TEST_F(TempDir, PoseJsonUncertaintyErrorsAreLocated) {
+  const std::string head = R"({"schema":"clearfit.pose/1","units":"mm","cam_from_part":{"r":[0,0,0],"t":[0,0,100]},)";
+  expect_pose_error(file("negsigma.json", head + R"("sigma":{"rotation_deg":[0.1,-0.2,0.3],"translation_mm":[0,0,0]}})"), "sigma",
+                    "0 or more");
+  expect_pose_error(file("nosigmat.json", head + R"("sigma":{"rotation_deg":[0.1,0.2,0.3]}})"), "sigma.translation_mm", "missing");
+  expect_pose_error(file("short.json", head + R"("covariance":[[1,0,0,0,0,0]]})"), "covariance", "6 rows");
+  expect_pose_error(file("asym.json", head + R"("covariance":[[1,0.5,0,0,0,0],[0,1,0,0,0,0],[0,0,1,0,0,0],[0,0,0,1,0,0],[0,0,0,0,1,0],[0,0,0,0,0,1]]})"),
+                    "covariance", "symmetric");
+  expect_pose_error(file("negdiag.json", head + R"("covariance":[[-1,0,0,0,0,0],[0,1,0,0,0,0],[0,0,1,0,0,0],[0,0,0,1,0,0],[0,0,0,0,1,0],[0,0,0,0,0,1]]})"),
+                    "covariance", "non-negative");
+  expect_pose_error(file("text.json", head + R"("covariance":[[1,0,0,0,0,"x"],[0,1,0,0,0,0],[0,0,1,0,0,0],[0,0,0,1,0,0],[0,0,0,0,1,0],[0,0,0,0,0,1]]})"),
+                    "'covariance' row 1", "finite");
 }
 
 }  // namespace

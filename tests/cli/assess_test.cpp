@@ -7,6 +7,7 @@
 
 #include <clearfit/geometry/contact.hpp>
 #include <clearfit/geometry/import.hpp>
+#include <clearfit/npy.hpp>
 
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
@@ -91,6 +92,21 @@ TEST_F(AssessCli, FindsTheSimulatedHotspotsWhereTheTruthPutsThem) {
                         "skin_chart.png", "pressure.npy", "signal.npy"})
     EXPECT_TRUE(fs::exists(work() / "out" / f)) << f;
   ASSERT_FALSE(report["pressure"].is_null());
+  EXPECT_EQ(report["outputs"]["pressure_sigma_npy"], "pressure_sigma.npy");
+  // pressure_sigma.npy: the pressure's grid, a positive σ exactly where the pressure is an estimate (> 0 kPa and
+  // below the calibration's top: 0 is "below detection", the top a saturated lower bound).
+  const npy::Float32Array p = npy::read_float32(work() / "out" / "pressure.npy");
+  const npy::Float32Array ps = npy::read_float32(work() / "out" / "pressure_sigma.npy");
+  ASSERT_EQ(ps.shape, p.shape);
+  float p_top = 0;
+  for (float v : p.values) p_top = std::isfinite(v) ? std::max(p_top, v) : p_top;
+  long long estimates = 0, with_sigma = 0;
+  for (std::size_t k = 0; k < p.values.size(); ++k) {
+    if (std::isfinite(ps.values[k])) EXPECT_TRUE(p.values[k] > 0 && ps.values[k] > 0) << "texel " << k;
+    if (p.values[k] > 0 && p.values[k] < p_top) ++estimates, with_sigma += std::isfinite(ps.values[k]);
+  }
+  EXPECT_GT(estimates, 100);
+  EXPECT_EQ(with_sigma, estimates);
   for (const auto& th : truth["hotspots"]) {
     const Eigen::Vector3d c(th["centroid_part_mm"][0], th["centroid_part_mm"][1], th["centroid_part_mm"][2]);
     double best = 1e9, peak = NAN;
@@ -216,7 +232,8 @@ TEST_F(AssessCli, WritesHotspotAndVertexTablesBesideTheGlb) {
   const Mesh mesh = load_mesh(kWristband / "wristband.obj");
   const auto vs = csv_rows(read_text(work() / "out" / "vertices.csv"));
   ASSERT_EQ(vs.size(), mesh.vertices.size() + 1);
-  EXPECT_EQ(vs[0], (std::vector<std::string>{"vertex", "x_mm", "y_mm", "z_mm", "contact", "seen", "pressure_kpa", "signal"}));
+  EXPECT_EQ(vs[0], (std::vector<std::string>{"vertex", "x_mm", "y_mm", "z_mm", "contact", "seen", "pressure_kpa", "signal",
+                                             "pressure_sigma_kpa"}));
   const std::string ply = read_text(work() / "out" / "heatmap.ply");
   const auto end = ply.find("end_header\n");
   ASSERT_NE(end, std::string::npos);
@@ -226,7 +243,7 @@ TEST_F(AssessCli, WritesHotspotAndVertexTablesBesideTheGlb) {
   EXPECT_NE(header.find("property float pressure_kpa"), std::string::npos) << header;
   const char* body = ply.data() + end + 11;
   ASSERT_EQ(ply.size() - end - 11, mesh.vertices.size() * 21 + mesh.faces.size() * 13);
-  long long seen = 0;
+  long long seen = 0, with_sigma = 0;
   for (std::size_t v = 0; v < mesh.vertices.size(); ++v) {
     float x[5];
     std::memcpy(x, body + 21 * v, sizeof x);
@@ -236,8 +253,14 @@ TEST_F(AssessCli, WritesHotspotAndVertexTablesBesideTheGlb) {
     EXPECT_NEAR(x[0], mesh.vertices[v].x(), 1e-3);
     if (s) EXPECT_NEAR(x[3], std::stod(vs[v + 1][6]), 2e-3) << "vertex " << v;
     else EXPECT_TRUE(vs[v + 1][6].empty()) << "vertex " << v << ": a value where not seen";
+    // A σ exactly where the pressure is an estimate (above 0 kPa, i.e. not below detection).
+    ASSERT_EQ(vs[v + 1].size(), 9u) << "vertex " << v;
+    const bool estimate = s && !vs[v + 1][6].empty() && std::stod(vs[v + 1][6]) > 0;
+    if (!estimate) EXPECT_TRUE(vs[v + 1][8].empty()) << "vertex " << v << ": a σ without an estimate";
+    if (estimate && !vs[v + 1][8].empty()) with_sigma += std::stod(vs[v + 1][8]) > 0;
   }
   EXPECT_GT(seen, 100);
+  EXPECT_GT(with_sigma, 10) << "vertices with a pressure estimate and its σ";
   // Contact-boundary vertices the camera sees are seen (_SEEN 1): a boundary vertex whose inner
   // neighbours on the contact surface are all seen lies on seen skin.
   ContactSelector sel;

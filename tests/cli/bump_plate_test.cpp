@@ -175,7 +175,7 @@ void expect_vertices_seen(const PlateRun& r, const Plate& p) {
   std::istringstream in(r.vertices_csv);
   std::string line;
   std::getline(in, line);
-  ASSERT_EQ(line, "vertex,x_mm,y_mm,z_mm,contact,seen,pressure_kpa,signal");
+  ASSERT_EQ(line, "vertex,x_mm,y_mm,z_mm,contact,seen,pressure_kpa,signal,pressure_sigma_kpa");
   int rim = 0, rim_seen = 0, wall = 0, wall_seen = 0;
   while (std::getline(in, line)) {
     std::vector<std::string> f;

@@ -6,6 +6,7 @@
 #include <clearfit/geometry/chart.hpp>
 #include <clearfit/geometry/shapes.hpp>
 #include <gtest/gtest.h>
+#include <opencv2/imgproc.hpp>
 
 #include <cmath>
 #include <functional>
@@ -116,6 +117,51 @@ TEST(Hotspots, CentroidLiesOnACurvedSurfaceAndTheMeanInside) {
   // On the faceted surface: within the facets' sagitta r(1 − cos(π/96 · 120/360)) of the circle.
   EXPECT_NEAR(radius(hs[0].centroid_mm), r_in, r_in * (1 - std::cos(kPi * 120 / 360 / 96)) + 1e-9);
   EXPECT_NEAR((hs[0].centroid_mm - hs[0].centroid_mean_mm).norm(), r_in - radius(hs[0].centroid_mean_mm), 0.01);
+}
+
+TEST(Hotspots, CentreOfPressureSigmaMatchesTheScatterOverNoiseRealisations) {
+  // A Gaussian place plus noise smoothed like the assessment's signal (white per texel, then a Gaussian of
+  // σ_s): the centre of pressure's rms scatter over realisations against its propagated σ.
+  test::TracePart part(shapes::slab(10, 10, 2, 4));
+  const Chart chart = compute_chart(part.mesh, part.contact);
+  const ChartGrid grid = ChartGrid::covering(chart.uv_min, chart.uv_max, 0.05);
+  const ChartRaster raster = rasterize_chart(part.mesh, chart, grid);
+  const Vec2 centre = 0.5 * (chart.uv_min + chart.uv_max);
+  const double peak = 10, width = 1.2, noise = 0.3, smooth_mm = 0.25;
+  const double smooth_px = smooth_mm / grid.texel_mm;
+  const cv::Mat k1 = cv::getGaussianKernel(2 * static_cast<int>(std::ceil(4 * smooth_px)) + 1, smooth_px, CV_64F);
+  const double gain = k1.dot(k1);  // variance of white unit noise after the 2D (separable) kernel: (Σ k²)²
+  HotspotOptions o;
+  o.thresholds = {3.0};  // 10 σ of the noise: the place's outline hardly moves (the propagation is for a given place)
+  o.samples_per_mm2 = 1.0 / (4 * kPi * smooth_mm * smooth_mm);
+  ChartField clean{grid, std::vector<float>(grid.size(), NAN)};
+  for (int j = 0; j < grid.height; ++j)
+    for (int i = 0; i < grid.width; ++i)
+      if (raster.face[grid.index(i, j)] >= 0)
+        clean.value[grid.index(i, j)] = static_cast<float>(peak * std::exp(-(grid.uv(i, j) - centre).squaredNorm() / (2 * width * width)));
+  const ChartField sigma{grid, std::vector<float>(grid.size(), static_cast<float>(noise))};
+  const auto truth = find_hotspots(clean, &sigma, nullptr, raster, o, nullptr, &part.mesh);
+  ASSERT_EQ(truth.size(), 1u);
+  cv::RNG rng(7);
+  double sum_d2 = 0, sum_predicted = 0;
+  const int runs = 200;
+  for (int r = 0; r < runs; ++r) {
+    cv::Mat white(grid.height, grid.width, CV_64F), smoothed;
+    rng.fill(white, cv::RNG::NORMAL, 0.0, noise / gain);
+    cv::GaussianBlur(white, smoothed, cv::Size(), smooth_px, smooth_px, cv::BORDER_REFLECT);
+    ChartField f = clean;
+    for (int j = 0; j < grid.height; ++j)
+      for (int i = 0; i < grid.width; ++i) f.value[grid.index(i, j)] += static_cast<float>(smoothed.at<double>(j, i));
+    const auto hs = find_hotspots(f, &sigma, nullptr, raster, o, nullptr, &part.mesh);
+    ASSERT_GE(hs.size(), 1u);
+    sum_d2 += (hs[0].centre_of_pressure_mm - truth[0].centre_of_pressure_mm).squaredNorm();
+    sum_predicted += hs[0].centre_of_pressure_sigma_mm;
+  }
+  const double measured = std::sqrt(sum_d2 / runs), predicted = sum_predicted / runs;
+  std::printf("centre of pressure: rms scatter %.4f mm over %d realisations, propagated sigma %.4f mm\n", measured, runs, predicted);
+  EXPECT_NEAR(predicted, measured, 0.15 * measured);
+  // Without a sigma field there is no σ.
+  EXPECT_TRUE(std::isnan(find_hotspots(clean, nullptr, nullptr, raster, o, nullptr, &part.mesh)[0].centre_of_pressure_sigma_mm));
 }
 
 }  // namespace

@@ -39,7 +39,8 @@ struct Prepared {
   AssessmentOptions options;
   CaptureSources sources;
   AssessmentScene view() const {
-    return {&part->mesh, &part->contact, &*part->chart, &part->camera, part->cam_from_part, &map, &inverse};
+    return {&part->mesh, &part->contact, &*part->chart, &part->camera, part->cam_from_part, &map, &inverse,
+            part->pose_covariance ? &*part->pose_covariance : nullptr};
   }
 };
 

@@ -7,7 +7,7 @@
 #include <clearfit/cli/scene.hpp>
 
 #include <clearfit/camera/camera_model.hpp>
-#include <clearfit/camera/pose.hpp>
+#include <clearfit/camera/pose_file.hpp>
 #include <clearfit/geometry/normals.hpp>
 #include <clearfit/geometry/ray_index.hpp>
 #include <clearfit/refraction/map.hpp>
@@ -37,6 +37,7 @@ struct LoadedPart {
   CameraModel camera;
   Rigid3 cam_from_part;
   std::string pose_source;    ///< where cam_from_part came from
+  std::optional<PoseCovariance> pose_covariance;  ///< from the pose file, when it carries one
   std::string camera_source;  ///< the camera model's file
   std::optional<Chart> chart;
   CornerNormals normals;

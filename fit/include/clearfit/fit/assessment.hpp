@@ -5,6 +5,7 @@
 // refraction maps); this module reads the captures and computes; the reports
 // module turns the result into files.
 #include <clearfit/camera/camera_model.hpp>
+#include <clearfit/camera/pose_file.hpp>
 #include <clearfit/fit/blanching.hpp>
 #include <clearfit/fit/capture.hpp>
 #include <clearfit/fit/glare.hpp>
@@ -76,14 +77,24 @@ struct Assessment {
   BlanchingSignal signal;
   ChartRaster raster;
   bool calibrated = false;
-  ChartField pressure, pressure_sigma;       ///< kPa (0 below detection, NaN unseen); empty without a calibration
+  ChartField pressure;                       ///< kPa (0 below detection, NaN unseen); empty without a calibration
+  /// 1-σ of `pressure`, kPa, where it is an estimate (PressureStatus::ok); NaN unseen, below detection
+  /// (0 kPa there is a bound, not an estimate) and saturated (a lower bound).
+  ChartField pressure_sigma;
   std::vector<std::uint8_t> pressure_status; ///< PressureStatus per texel (invalid where unseen)
   double below_detection_fraction = 0, saturated_fraction = 0;  ///< of seen texels
   double peak_kpa = 0, mean_kpa = 0;         ///< over seen texels with an estimate
   std::vector<Hotspot> hotspots;
   std::vector<double> thresholds;            ///< the thresholds used, in the field's unit
   std::vector<int> hotspot_labels;           ///< place id per texel (0 = none), for outlines
+  /// Per texel, 1-σ (mm, per axis across the line of sight) of where on the skin the texel lies, from the
+  /// pose's covariance; empty when it is unknown. Its signal term |∇y|·σ is in signal_sigma.
+  ChartField position_sigma_mm;
+  /// 1-σ of the signal per texel: the noise (signal.sigma_y) and the position term in quadrature; inverted
+  /// into pressure_sigma, and the σ of the hotspots without a calibration.
+  ChartField signal_sigma;
   std::vector<float> vertex_pressure, vertex_signal;  ///< per mesh vertex, NaN where unseen / off the contact
+  std::vector<float> vertex_pressure_sigma;  ///< 1-σ of vertex_pressure (kPa); NaN where pressure_sigma is undefined around it
   cv::Mat skin_camera;                       ///< last worn frame (BGR8), as the camera saw it, glare mask outlined in magenta
   cv::Mat skin_chart;                        ///< the same resampled onto the chart (BGR8)
   Coverage coverage;
@@ -103,6 +114,8 @@ struct AssessmentScene {
   Rigid3 cam_from_part;
   const RefractionMap* forward = nullptr;
   const InverseMap* inverse = nullptr;
+  /// The pose's covariance (camera/pose_file.hpp); nullptr: unknown (no position term in the σ).
+  const PoseCovariance* pose_covariance = nullptr;
 };
 
 /// Runs the assessment. Throws InputError on bad captures (see capture.hpp),

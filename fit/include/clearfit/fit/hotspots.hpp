@@ -6,6 +6,7 @@
 #include <clearfit/geometry/contact.hpp>
 
 #include <cstdint>
+#include <limits>
 #include <optional>
 #include <vector>
 
@@ -51,6 +52,11 @@ struct Hotspot {
   Vec3 centroid_mm = Vec3::Zero();    ///< on the contact surface: the point of it nearest to centroid_mean_mm
   Vec3 centroid_mean_mm = Vec3::Zero();  ///< area-weighted 3D mean (inside a curved surface)
   Vec3 centre_of_pressure_mm = Vec3::Zero();  ///< field-weighted 3D mean, moved onto the surface likewise
+  /// 1-σ of the centre of pressure (mm, the root of its covariance's trace: the rms distance to the true
+  /// centre) from the per-texel σ, linearly propagated, the texels correlated over HotspotOptions::samples_per_mm2
+  /// (texels without σ, e.g. saturated, add nothing), plus the outline's motion (texels within σ of the
+  /// lowest threshold move it by σ/|∇v|); NaN without a sigma field.
+  double centre_of_pressure_sigma_mm = std::numeric_limits<double>::quiet_NaN();
   Vec2 centroid_uv_mm = Vec2::Zero();
   std::vector<int> faces;             ///< mesh faces covered (ascending)
   long long texels = 0;
@@ -87,6 +93,10 @@ struct HotspotOptions {
 std::vector<Hotspot> find_hotspots(const ChartField& field, const ChartField* sigma, const std::vector<std::uint8_t>* flags,
                                    const ChartRaster& raster, const HotspotOptions& options,
                                    std::vector<int>* labels = nullptr, const Mesh* mesh = nullptr);
+
+/// |∇v| of `field` at texel (i, j), per mm: central differences, one-sided beside undefined texels, 0
+/// when neither neighbour is defined.
+double gradient_norm(const ChartField& field, int i, int j);
 
 /// Barycentric weights of the point of triangle abc closest to p (Ericson,
 /// Real-Time Collision Detection, 5.1.5).

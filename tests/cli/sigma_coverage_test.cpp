@@ -1,0 +1,111 @@
+// The pressure σ checked by simulation: a small slab with two Gaussian pressure sources is filmed
+// (`clearfit simulate`), the wearer calibrated from the simulated presses (`calibrate-pressure`) and the
+// captures assessed, over several seeds. The 95 % intervals p ± 1.96σ of pressure.npy and
+// pressure_sigma.npy must hold the truth (truth_pressure.npy, on the same chart grid) 90–98 % of the time.
+// Counted: every texel whose truth lies within the calibration's range (its detection and saturation
+// pressures, calibration.json `limits`) and whose estimate has a σ; texels whose truth is in range but whose
+// estimate is below detection or saturated have no interval and are counted apart (printed). Nothing else is
+// left out: no edge or steep-gradient texels are excluded.
+#include "cli_support.hpp"
+#include "slab_part.hpp"
+
+#include <clearfit/npy.hpp>
+#include <nlohmann/json.hpp>
+
+#include <cmath>
+#include <cstdio>
+#include <limits>
+
+namespace clearfit::cli_test {
+namespace {
+
+struct Counts {
+  long long texels = 0, inside = 0, censored = 0;  ///< censored: truth in range, estimate below detection or saturated
+  double sum_z2 = 0, sum_z = 0;
+};
+
+/// One seed: simulate, calibrate, assess in `dir`; the texels with an estimate against the truth.
+Counts run_seed(const fs::path& dir, int seed) {
+  fs::create_directories(dir);
+  write_slab_part(dir);
+  write_text(dir / "sim.yaml", "mesh: slab.obj\nior: 1.49\ncontact: {group: contact}\ncamera: cam.cameramodel\n"
+                               "simulation:\n  seed: " + std::to_string(seed) + "\n  format: huffyuv\n"
+                               "  timeline: {fps: 30, baseline_s: 2, press_s: 2.5}\n  skin: {tone: medium}\n"
+                               "  pressure:\n    texel_mm: 0.1\n    sources:\n"
+                               "      - {name: a, type: gaussian, center_uv_mm: [8, 9], peak_kpa: 14, sigma_mm: 2.5}\n"
+                               "      - {name: b, type: gaussian, center_uv_mm: [17, 9], peak_kpa: 10, sigma_mm: 1.5}\n"
+                               "  presses: {diameters_mm: [3], levels: 9, repetitions: 3}\n");
+  write_text(dir / "scene.yaml", "mesh: slab.obj\nior: 1.49\ncontact: {group: contact}\ncamera: cam.cameramodel\n"
+                                 "outputs: {folder: out, texel_mm: 0.1}\n"
+                                 "captures: {baseline: captures/baseline.mkv, worn: captures/worn.mkv, window_frames: 40}\n"
+                                 "calibration: {pressure: captures/calibration.json, person: wearer-1}\n");
+  const RunResult sim = run_clearfit({"simulate", "sim.yaml", "--out", "captures", "--quiet", "--no-cache"}, dir, dir, 120);
+  if (sim.exit_code != 0) throw std::runtime_error("simulate failed:\n" + sim.err);
+  const RunResult cal = run_clearfit({"calibrate-pressure", "--presses", "captures/presses.csv", "--person", "wearer-1", "--camera",
+                                      "cam.cameramodel", "--out", "captures/calibration.json"},
+                                     dir, dir, 60);
+  if (cal.exit_code != 0) throw std::runtime_error("calibrate-pressure failed:\n" + cal.err);
+  const RunResult as = run_clearfit({"assess", "scene.yaml", "--quiet", "--no-cache", "--no-html"}, dir, dir, 120);
+  if (as.exit_code != 0) throw std::runtime_error("assess failed:\n" + as.err);
+  const npy::Float32Array truth = npy::read_float32(dir / "captures" / "truth_pressure.npy");
+  const npy::Float32Array p = npy::read_float32(dir / "out" / "pressure.npy");
+  const npy::Float32Array s = npy::read_float32(dir / "out" / "pressure_sigma.npy");
+  if (s.shape != p.shape || p.shape.size() != 2 || truth.shape.size() != 2) throw std::runtime_error("unexpected array shapes");
+  // The truth's grid has texel centres on whole multiples of the texel, the assessment's half a texel
+  // inside the chart: the truth is interpolated (bilinearly) at the assessment's texel centres.
+  const auto tg = nlohmann::json::parse(read_text(dir / "captures" / "truth.json"))["chart_grid"];
+  const auto ag = nlohmann::json::parse(read_text(dir / "out" / "report.json"))["chart"];
+  const auto limits = nlohmann::json::parse(read_text(dir / "captures" / "calibration.json"))["limits"];
+  const double p_lo = limits["detection_kpa"], p_hi = limits["saturation_kpa"];
+  const double t_mm = tg["texel_mm"], a_mm = ag["texel_mm"];
+  const long th = static_cast<long>(truth.shape[0]), tw = static_cast<long>(truth.shape[1]);
+  auto truth_at = [&](double u, double v) {
+    const double fx = (u - tg["uv_origin_mm"][0].get<double>()) / t_mm, fy = (v - tg["uv_origin_mm"][1].get<double>()) / t_mm;
+    const long x = static_cast<long>(std::floor(fx)), y = static_cast<long>(std::floor(fy));
+    if (x < 0 || y < 0 || x + 1 >= tw || y + 1 >= th) return std::numeric_limits<double>::quiet_NaN();
+    const double ax = fx - x, ay = fy - y;
+    auto T = [&](long i, long j) { return static_cast<double>(truth.values[j * tw + i]); };
+    return (1 - ax) * (1 - ay) * T(x, y) + ax * (1 - ay) * T(x + 1, y) + (1 - ax) * ay * T(x, y + 1) + ax * ay * T(x + 1, y + 1);
+  };
+  Counts c;
+  const std::size_t w = p.shape[1];
+  for (std::size_t k = 0; k < p.values.size(); ++k) {
+    const double t = truth_at(ag["uv_min_mm"][0].get<double>() + a_mm * (k % w), ag["uv_min_mm"][1].get<double>() + a_mm * (k / w));
+    // The truth within the calibration's range (between its detection and saturation pressures), the estimate with a σ.
+    if (!(t >= p_lo && t <= p_hi)) continue;
+    if (!std::isfinite(s.values[k])) {
+      ++c.censored;
+      continue;
+    }
+    const double z = (p.values[k] - t) / s.values[k];
+    ++c.texels;
+    c.inside += std::abs(z) <= 1.96;
+    c.sum_z2 += z * z;
+    c.sum_z += z;
+  }
+  return c;
+}
+
+TEST(SigmaCoverage, NinetyFivePercentIntervalsHoldTheTruth) {
+  const fs::path root = fs::temp_directory_path() / ("clearfit_sigma_coverage_" + std::to_string(::getpid()));
+  fs::remove_all(root);
+  Counts all;
+  for (int seed : {1, 2, 3, 4}) {
+    const Counts c = run_seed(root / std::to_string(seed), seed);
+    std::printf("seed %d: %lld texels (truth in the calibration's range, with an estimate; %lld more below detection or "
+                "saturated), %.1f %% inside p ± 1.96σ, mean z %+.2f, rms z %.2f\n",
+                seed, c.texels, c.censored, 100.0 * c.inside / std::max(1LL, c.texels), c.sum_z / std::max(1LL, c.texels),
+                std::sqrt(c.sum_z2 / std::max(1LL, c.texels)));
+    EXPECT_GT(c.texels, 500) << "seed " << seed;
+    all.texels += c.texels, all.inside += c.inside, all.sum_z2 += c.sum_z2, all.sum_z += c.sum_z;
+  }
+  const double coverage = static_cast<double>(all.inside) / all.texels;
+  std::printf("coverage of the 95 %% intervals: %.1f %% of %lld texels over 4 seeds (mean z %+.2f, rms z %.2f)\n", 100 * coverage,
+              all.texels, all.sum_z / all.texels, std::sqrt(all.sum_z2 / all.texels));
+  EXPECT_GE(coverage, 0.90);
+  EXPECT_LE(coverage, 0.98);
+  fs::remove_all(root);
+}
+
+}  // namespace
+}  // namespace clearfit::cli_test
