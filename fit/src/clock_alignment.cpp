@@ -30,7 +30,10 @@ struct Response {
   }
 };
 
-Response response(const ForceLog& log, const AlignmentOptions& o) {
+/// The force's normalised steady response `steady(u)` (u the force over the log's largest) through a
+/// first-order lag, τ_on rising and τ_off falling, on a uniform gauge-time grid.
+template <class Steady>
+Response lagged_response(const ForceLog& log, Steady steady, double tau_on, double tau_off) {
   Response out;
   out.t0 = log.time_s.front();
   const double top = std::max(1e-12, *std::max_element(log.force_n.begin(), log.force_n.end()));
@@ -42,11 +45,15 @@ Response response(const ForceLog& log, const AlignmentOptions& o) {
     const double t = out.t0 + (double(i) - 0.5) * out.dt;  // the force over the step before the sample, at its middle
     while (j + 2 < log.time_s.size() && log.time_s[j + 1] < t) ++j;
     const double w = std::clamp((t - log.time_s[j]) / (log.time_s[j + 1] - log.time_s[j]), 0.0, 1.0);
-    const double u = std::max(0.0, (log.force_n[j] + w * (log.force_n[j + 1] - log.force_n[j])) / top);
-    state += (u - state) * (1 - std::exp(-out.dt / (u > state ? o.tau_on_s : o.tau_off_s)));
+    const double target = steady(std::max(0.0, (log.force_n[j] + w * (log.force_n[j + 1] - log.force_n[j])) / top));
+    state += (target - state) * (1 - std::exp(-out.dt / (target > state ? tau_on : tau_off)));
     out.r[i] = state;
   }
   return out;
+}
+
+Response response(const ForceLog& log, const AlignmentOptions& o) {
+  return lagged_response(log, [](double u) { return u; }, o.tau_on_s, o.tau_off_s);
 }
 
 /// Pearson correlation of the observed signal with the response at the mapped times (NaN if < half overlaps).
@@ -120,23 +127,7 @@ Response trace_response(const ForceLog& log, const Eigen::VectorXd& x) {
   const double u50 = x[4], uw = std::exp(std::clamp(x[5], -6.0, 3.0));
   auto sig = [](double z) { return 1 / (1 + std::exp(-z)); };
   const double s0 = sig(-u50 / uw);
-  Response out;
-  out.t0 = log.time_s.front();
-  const double top = std::max(1e-12, *std::max_element(log.force_n.begin(), log.force_n.end()));
-  const auto n = static_cast<std::size_t>((log.time_s.back() - out.t0) / out.dt) + 1;
-  out.r.resize(n);
-  double state = 0;
-  std::size_t j = 0;
-  for (std::size_t i = 0; i < n; ++i) {
-    const double t = out.t0 + (double(i) - 0.5) * out.dt;  // the force over the step before the sample, at its middle
-    while (j + 2 < log.time_s.size() && log.time_s[j + 1] < t) ++j;
-    const double w = std::clamp((t - log.time_s[j]) / (log.time_s[j + 1] - log.time_s[j]), 0.0, 1.0);
-    const double u = std::max(0.0, (log.force_n[j] + w * (log.force_n[j + 1] - log.force_n[j])) / top);
-    const double target = (sig((u - u50) / uw) - s0) / (1 - s0);
-    state += (target - state) * (1 - std::exp(-out.dt / (target > state ? tau_on : tau_off)));
-    out.r[i] = state;
-  }
-  return out;
+  return lagged_response(log, [&](double u) { return (sig((u - u50) / uw) - s0) / (1 - s0); }, tau_on, tau_off);
 }
 
 struct TraceResiduals {
