@@ -101,6 +101,8 @@ Run add_assess(CLI::App& app) {
                    {"timeseries", sc.assess.timeseries.options.enabled},
                    {"timeseries_cell_px", sc.assess.timeseries.options.cell_px},
                    {"timeseries_max_mb", sc.assess.timeseries.options.max_mb},
+                   {"baseline_part", to_string(sc.baseline.part)},
+                   {"baseline_gap_mm", sc.baseline.gap_mm},
                    {"person", sc.calibration.person}};
     for (const auto& n : notes) std::cerr << "clearfit: note: " << n << "\n";
     ctx.run_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

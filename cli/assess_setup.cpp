@@ -8,7 +8,7 @@
 namespace clearfit::cli {
 
 void add_assess_options(CLI::App& sub, AssessOpts& o) {
-  o.options = add_scene_options(sub, o.scene, {"", "contact", "map", "outputs.folder", "outputs.texel_mm", "captures", "calibration", "assess"});
+  o.options = add_scene_options(sub, o.scene, {"", "contact", "map", "outputs.folder", "outputs.texel_mm", "captures", "baseline", "calibration", "assess"});
   add_cache_options(sub, o.cache);
   sub.add_flag("--no-html", o.no_html, "Do not write report.html");
   sub.add_flag("--quiet", o.quiet, "No progress on stderr");
@@ -37,6 +37,12 @@ std::unique_ptr<Prepared> prepare(AssessOpts& o) {
   iopt.uv_max = p->part->chart->uv_max;
   iopt.compute_errors = false;
   p->inverse = compute_inverse_map(p->map, iopt, &p->part->contact);
+  p->inverse_options = iopt;
+  p->baseline_part = sc.baseline.part;
+  p->baseline_gap_mm = sc.baseline.gap();
+  if (sc.baseline.part != BaselinePart::touching)
+    p->baseline_rays = std::make_unique<BaselineRays>(p->part->trace_scene(), p->part->camera, p->part->cam_from_part,
+                                                      p->part->map_options, sc.baseline.part, p->map);
   if (!o.quiet)
     std::cerr << "  map: " << p->map.stats.by_status[0] << " pixels see the skin (" << fixed(100 * p->map.stats.coverage)
               << " %), cache " << p->cache << "; chart " << p->inverse.width << " x " << p->inverse.height << " texels of "

@@ -227,6 +227,35 @@ void CapturesSection::validate() const {
     throw SceneRuleError("both", "give either 'both' or 'baseline' and 'worn', not all three");
 }
 
+void BaselineSection::bind(SceneFields& f) {
+  f.choice("part", part, {{"held", BaselinePart::held}, {"absent", BaselinePart::absent}, {"touching", BaselinePart::touching}},
+           "--baseline-part",
+           "How the not-worn capture was filmed: held (the part just off the skin), absent (no part) or touching (as when worn)");
+  f.key("gap_mm", gap_mm, "--baseline-gap-mm",
+        "Held or absent: the skin's distance beyond the contact surface in the not-worn capture, mm, or auto (estimated)");
+}
+
+std::optional<double> BaselineSection::gap() const {
+  if (gap_mm == "auto") return std::nullopt;
+  return std::stod(gap_mm);
+}
+
+void BaselineSection::validate() const {
+  if (gap_mm == "auto") return;
+  std::size_t used = 0;
+  double g = NAN;
+  try {
+    g = std::stod(gap_mm, &used);
+  } catch (const std::exception&) {
+    used = 0;
+  }
+  if (used != gap_mm.size() || !std::isfinite(g)) rule_broken("gap_mm", "'" + gap_mm + "'", "auto or a length in mm");
+  if (g < 0 || g > 20)
+    rule_broken("gap_mm", gap_mm, "a length from 0 to 20 mm (the skin's distance beyond the part's contact surface), or auto");
+  if (part == BaselinePart::touching && g != 0)
+    throw SceneRuleError("gap_mm", "must be auto or 0 with part: touching (the skin touches the part), got " + gap_mm);
+}
+
 void CalibrationSection::bind(SceneFields& f) {
   f.path("pressure", pressure, "--calibration", "Per-person pressure calibration (from clearfit calibrate-pressure)");
   f.key("person", person, "--person", "Who wears the part (checked against the calibration)");
@@ -314,6 +343,7 @@ void Scene::bind(SceneFields& f) {
   f.section("map", map);
   f.section("outputs", outputs);
   f.section("captures", captures);
+  f.section("baseline", baseline);
   f.section("calibration", calibration);
   f.section("assess", assess);
   f.custom("simulation", [this](const YAML::Node& n, const SceneReader& r, const std::string&) {
@@ -334,6 +364,7 @@ void Scene::validate() const {
   check("map", map);
   check("outputs", outputs);
   check("captures", captures);
+  check("baseline", baseline);
   check("calibration", calibration);
   check("assess", assess);
   if (simulation) check("simulation", *simulation);

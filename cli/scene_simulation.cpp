@@ -48,7 +48,7 @@ class SimulationParser {
 
   void parse(const YAML::Node& s, SimulationSection& o) {
     r_.only_keys(s, "simulation", {"preset", "seed", "out", "format", "crf", "scale", "timeline", "skin", "camera", "flicker", "motion", "pressure",
-                                   "presses", "glare", "exposure"});
+                                   "presses", "glare", "exposure", "baseline"});
     // The preset first: every key read below replaces its value.
     if (auto v = r_.get<std::string>(s, "preset", "simulation.preset", "realistic or none")) {
       if (*v != "realistic" && *v != "none")
@@ -113,6 +113,16 @@ class SimulationParser {
       num(m, "tremor_px", "simulation.motion.tremor_px", o.camera.motion_tremor_px, 0, 20);
       num(m, "tremor_hz", "simulation.motion.tremor_hz", o.camera.motion_tremor_hz, 0.1, 100);
       num(m, "rotation_deg", "simulation.motion.rotation_deg", o.camera.motion_rotation_deg, -10, 10);
+    }
+    if (const YAML::Node b = s["baseline"]) {
+      r_.only_keys(b, "simulation.baseline", {"part", "gap_mm"});
+      if (auto v = r_.get<std::string>(b, "part", "simulation.baseline.part", "held, absent or touching")) {
+        if (*v == "held") o.baseline.part = BaselinePart::held;
+        else if (*v == "absent") o.baseline.part = BaselinePart::absent;
+        else if (*v == "touching") o.baseline.part = BaselinePart::touching;
+        else r_.fail(b["part"], "simulation.baseline.part", "expected held, absent or touching, got '" + *v + "'");
+      }
+      num(b, "gap_mm", "simulation.baseline.gap_mm", o.baseline.gap_mm, 0, 20);
     }
     if (const YAML::Node p = s["pressure"]) parse_pressure(p, o);
     if (const YAML::Node p = s["presses"]) parse_presses(p, o);
@@ -250,6 +260,7 @@ void SimulationSection::validate() const {
     timeline.validate();
     if (presses) presses->validate();
     photometric.validate();
+    baseline.validate();
   } catch (const std::invalid_argument& e) {
     throw SceneRuleError("", e.what());
   }

@@ -11,6 +11,7 @@
 #include <clearfit/camera/pose.hpp>
 #include <clearfit/error.hpp>
 #include <clearfit/fit/simulate.hpp>
+#include <clearfit/refraction/baseline_map.hpp>
 #include <clearfit/refraction/map.hpp>
 
 #include <clearfit/atomic_file.hpp>
@@ -165,18 +166,31 @@ Run add_simulate(CLI::App& app) {
       t0 = std::chrono::steady_clock::now();
       const ChartField drive = skin_drive(spec.skin, truth.pressure);
       const sim::CaptureRenderer renderer(map, drive, spec.skin, spec.camera, spec.seed);
+      // The not-worn frames through their own map: the part held off the skin, or absent.
+      std::optional<RefractionMap> baseline_map;
+      std::optional<sim::CaptureRenderer> baseline_renderer;
+      if (spec.baseline.part != BaselinePart::touching) {
+        baseline_map.emplace(compute_baseline_map(part->trace_scene(), camera, part->cam_from_part, part->map_options,
+                                                  spec.baseline.part, spec.baseline.gap_mm, map));
+        baseline_renderer.emplace(*baseline_map, drive, spec.skin, spec.camera, spec.seed);
+        std::ostringstream b;
+        b << "baseline: part " << to_string(spec.baseline.part) << ", skin " << spec.baseline.gap_mm << " mm beyond the contact surface, "
+          << baseline_map->stats.by_status[0] << " pixels see it";
+        say(b.str());
+      }
       say("skin model and per-pixel terms ready (" + std::to_string(seconds_since(t0)).substr(0, 4) + " s)");
       int last_decile = -1;
       std::optional<sim::PhotometricSchedule> photometry;
       if (spec.photometric.any()) photometry.emplace(spec.photometric, spec.camera, spec.timeline, cv::Size(map.width, map.height));
-      const sim::CaptureSummary cap = sim::render_captures(
+      sim::CaptureSummary cap = sim::render_captures(
           renderer, spec.skin, spec.timeline, spec.camera, spec.format, dir, spec.seed, [&](int done, int total) {
             const int decile = 10 * done / total;
             if (decile != last_decile) {
               last_decile = decile;
               say("frame " + std::to_string(done) + "/" + std::to_string(total));
             }
-          }, photometry ? &*photometry : nullptr);
+          }, photometry ? &*photometry : nullptr, baseline_renderer ? &*baseline_renderer : nullptr);
+      cap.baseline = spec.baseline;
       std::vector<std::pair<std::string, std::string>> inputs{{"scene", sc.file.string()}, {"mesh", sc.part.mesh}, {"camera", sc.part.camera}};
       if (!sc.part.pose.empty()) inputs.emplace_back("pose", sc.part.pose);
       if (spec.pressure_map) inputs.emplace_back("pressure_map", *spec.pressure_map);

@@ -22,15 +22,18 @@ std::string fmt(double v, int digits = 1) {
   return s.str();
 }
 
-/// Bounding box of the pixels that see the skin, padded for motion.
-cv::Rect seen_roi(const RefractionMap& map, int pad) {
+/// Bounding box of the pixels that see the skin (and of those the baseline's own rays leave from), padded for motion.
+cv::Rect seen_roi(const RefractionMap& map, const BaselineRays* baseline, int pad) {
   int x0 = map.width, y0 = map.height, x1 = -1, y1 = -1;
+  auto add = [&](int x, int y) {
+    x0 = std::min(x0, x), x1 = std::max(x1, x);
+    y0 = std::min(y0, y), y1 = std::max(y1, y);
+  };
   for (int y = 0; y < map.height; ++y)
     for (int x = 0; x < map.width; ++x)
-      if (map.status[map.index(x, y)] == PixelStatus::valid) {
-        x0 = std::min(x0, x), x1 = std::max(x1, x);
-        y0 = std::min(y0, y), y1 = std::max(y1, y);
-      }
+      if (map.status[map.index(x, y)] == PixelStatus::valid) add(x, y);
+  if (baseline)
+    for (std::uint32_t p : baseline->pixels()) add(static_cast<int>(p % map.width), static_cast<int>(p / map.width));
   if (x1 < 0) return {};
   cv::Rect r(x0 - pad, y0 - pad, x1 - x0 + 1 + 2 * pad, y1 - y0 + 1 + 2 * pad);
   return r & cv::Rect(0, 0, map.width, map.height);
@@ -192,6 +195,106 @@ void add_position_to_centres(std::vector<Hotspot>& hotspots, const std::vector<i
       h.centre_of_pressure_sigma_mm = std::sqrt(h.centre_of_pressure_sigma_mm * h.centre_of_pressure_sigma_mm + 2 * sum[h.id] / n[h.id]);
 }
 
+
+/// Per texel ln(T_worn / T_baseline): each map's Fresnel transmittance at the texel's pixel (bilinear).
+std::vector<float> log_transmittance_ratio(const RefractionMap& worn, const InverseMap& worn_inv, const RefractionMap& base,
+                                           const InverseMap& base_inv) {
+  auto on_chart = [](const RefractionMap& m, const InverseMap& inv) {
+    const cv::Mat t(m.height, m.width, CV_32F, const_cast<float*>(m.transmittance.data()));
+    cv::Mat mx(inv.height, inv.width, CV_32F, const_cast<float*>(inv.map_x.data()));
+    cv::Mat my(inv.height, inv.width, CV_32F, const_cast<float*>(inv.map_y.data()));
+    cv::Mat out;
+    cv::remap(t, out, mx, my, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(kNaN));
+    return out;
+  };
+  const cv::Mat tw = on_chart(worn, worn_inv), tb = on_chart(base, base_inv);
+  std::vector<float> r(worn_inv.valid.size(), kNaN);
+  for (std::size_t k = 0; k < r.size(); ++k) {
+    const float a = tw.at<float>(static_cast<int>(k)), b = tb.at<float>(static_cast<int>(k));
+    if (worn_inv.valid[k] && base_inv.valid[k] && a > 0 && b > 0) r[k] = std::log(a / b);
+  }
+  return r;
+}
+
+/// The baseline's own map at the given or estimated gap; fills a.baseline_geometry and its warnings.
+RefractionMap baseline_geometry(const AssessmentScene& scene, const PhaseAverage& base_avg, const PhaseAverage& worn_avg, Assessment& a,
+                                const AssessmentOptions& o) {
+  BaselineGeometryReport& r = a.baseline_geometry;
+  r.part = scene.baseline_part;
+  if (scene.baseline_gap_mm) {
+    r.gap_mm = *scene.baseline_gap_mm;
+  } else {
+    if (o.progress) o.progress("estimating the baseline's gap", 0, 0);
+    const GapEstimate e = estimate_gap(*scene.baseline_rays, base_avg, resample_to_chart(worn_avg, *scene.inverse), o.gap);
+    r.estimate = e;
+    r.gap_mm = e.gap_mm;
+    r.gap_sigma_mm = e.sigma_mm;
+    r.gap_estimated = e.estimated;
+    // Does the gap matter? Over the searched range it moves the baseline's skin points by shift · range.
+    const double moved_mm = e.shift_mm_per_mm * o.gap.max_mm;
+    if (!e.estimated) {
+      const std::string part = to_string(scene.baseline_part);
+      if (moved_mm > scene.inverse->texel_mm)
+        throw InputError(a.baseline.source, "baseline.gap_mm: auto",
+                         "the gap between the skin and the part (" + part + ") in the not-worn capture cannot be estimated: " + e.problem +
+                             "; it matters here (each mm moves the skin seen by " + fmt(e.shift_mm_per_mm, 3) + " mm)",
+                         "give baseline.gap_mm (the distance from the part's contact surface to the skin when the not-worn capture "
+                         "was filmed; 0 with the part resting on the skin), or film the not-worn capture with the part touching the "
+                         "skin and set baseline.part: touching");
+      a.warnings.push_back("the baseline's gap could not be estimated (" + e.problem + "); it hardly matters here (each mm moves the "
+                           "skin seen by " + fmt(e.shift_mm_per_mm, 3) + " mm), so " + fmt(e.gap_mm, 2) + " mm is used");
+    }
+  }
+  RefractionMap m = scene.baseline_rays->map(r.gap_mm);
+  r.pixels_seeing_skin = m.stats.by_status[0];
+  return m;
+}
+
+/// The baseline average as the worn capture's geometry shows it, for comparing the phases pixel by
+/// pixel (the glare mask): a roi pixel that sees the skin in the worn map reads the baseline where
+/// the baseline's own map sees the same chart point; the others read it where they are.
+PhaseAverage in_worn_geometry(const PhaseAverage& base, const RefractionMap& worn, const InverseMap& base_inv) {
+  const cv::Rect roi = base.roi;
+  const float rx = static_cast<float>(base.residual_shift_px.x()), ry = static_cast<float>(base.residual_shift_px.y());
+  cv::Mat mx(roi.size(), CV_32F), my(roi.size(), CV_32F);
+  for (int y = 0; y < roi.height; ++y)
+    for (int x = 0; x < roi.width; ++x) {
+      float bx = static_cast<float>(x + roi.x), by = static_cast<float>(y + roi.y);
+      const std::size_t p = worn.index(x + roi.x, y + roi.y);
+      if (worn.status[p] == PixelStatus::valid && worn.chart_uv[p].allFinite()) {
+        const double fi = (worn.chart_uv[p].x() - base_inv.uv_origin.x()) / base_inv.texel_mm;
+        const double fj = (worn.chart_uv[p].y() - base_inv.uv_origin.y()) / base_inv.texel_mm;
+        const int i0 = static_cast<int>(std::floor(fi)), j0 = static_cast<int>(std::floor(fj));
+        if (i0 >= 0 && j0 >= 0 && i0 + 1 < base_inv.width && j0 + 1 < base_inv.height) {
+          const std::size_t k = base_inv.index(i0, j0);
+          if (base_inv.valid[k] && base_inv.valid[k + 1] && base_inv.valid[k + base_inv.width] && base_inv.valid[k + base_inv.width + 1]) {
+            const float u = static_cast<float>(fi - i0), v = static_cast<float>(fj - j0);
+            auto lerp = [&](const std::vector<float>& m) {
+              return (1 - v) * ((1 - u) * m[k] + u * m[k + 1]) + v * ((1 - u) * m[k + base_inv.width] + u * m[k + base_inv.width + 1]);
+            };
+            bx = lerp(base_inv.map_x), by = lerp(base_inv.map_y);
+          }
+        }
+      }
+      mx.at<float>(y, x) = bx - roi.x + rx, my.at<float>(y, x) = by - roi.y + ry;
+    }
+  PhaseAverage out = base;  // its images are replaced, never written into (cv::Mat shares data)
+  out.mean = cv::Mat(), out.variance = cv::Mat(), out.blue_half = cv::Mat();
+  cv::remap(base.mean, out.mean, mx, my, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+  cv::remap(base.variance, out.variance, mx, my, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+  if (!base.blue_half.empty()) {  // the half grid: every other pixel's source, halved
+    cv::Mat hx(base.blue_half.size(), CV_32F), hy(base.blue_half.size(), CV_32F);
+    for (int j = 0; j < hx.rows; ++j)
+      for (int i = 0; i < hx.cols; ++i) {
+        const int x = std::min(2 * i, roi.width - 1), y = std::min(2 * j, roi.height - 1);
+        const int x1 = std::min(x + 1, roi.width - 1);  // the cell averages columns 2i, 2i + 1 of row 2j
+        hx.at<float>(j, i) = 0.5f * (0.5f * (mx.at<float>(y, x) + mx.at<float>(y, x1)) - 0.5f), hy.at<float>(j, i) = 0.5f * my.at<float>(y, x);
+      }
+    cv::remap(base.blue_half, out.blue_half, hx, hy, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
+  }
+  out.residual_shift_px = Vec2::Zero();
+  return out;
+}
 }  // namespace
 
 Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& captures,
@@ -205,7 +308,9 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
   const InverseMap& inv = *scene.inverse;
 
   CaptureReadOptions ro;
-  ro.roi = seen_roi(map, static_cast<int>(std::ceil(o.max_motion_px)) + 2);
+  const bool own_geometry = scene.baseline_part != BaselinePart::touching;
+  if (own_geometry && !scene.baseline_rays) throw std::invalid_argument("assess_captures: a held or absent baseline needs its rays");
+  ro.roi = seen_roi(map, own_geometry ? scene.baseline_rays : nullptr, static_cast<int>(std::ceil(o.max_motion_px)) + 2);
   ro.chunk_frames = o.chunk_frames;
   ro.register_motion = o.compensate_motion;
   ro.seen = seen_pixels(map, ro.roi);
@@ -213,11 +318,14 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
   ro.max_motion_px = o.max_motion_px;
   ro.expected_width = scene.camera->width;
   ro.expected_height = scene.camera->height;
-  MotionReference reference;
+  // With its own geometry the baseline sees the skin elsewhere in the image: each phase is
+  // registered to its own first frame, and the maps bring both onto the chart.
+  MotionReference reference, worn_reference;
   if (o.timeseries.enabled) o.timeseries.validate();
   std::optional<TimeSeriesRecorder> base_series, worn_series;  // the worn phase over time (timeseries.hpp)
   auto read = [&](const std::filesystem::path& path, const std::string& role, std::optional<TimeSeriesRecorder>* series) {
     ro.role = role;
+    MotionReference& ref = own_geometry && role == "worn" ? worn_reference : reference;
     ro.on_frame = nullptr;
     if (o.timeseries.enabled && series && ro.roi.area() > 0) {
       series->emplace(ro.roi & cv::Rect(0, 0, map.width, map.height), o.timeseries);
@@ -226,7 +334,7 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
     ro.progress = [&](int done, int total) {
       if (o.progress) o.progress("reading the " + role + " capture", done, total);
     };
-    CaptureSums sums = read_capture(path, ro, reference);
+    CaptureSums sums = read_capture(path, ro, ref);
     a.read_ms += sums.read_ms;
     a.work_ms += sums.work_ms;
     return sums;
@@ -241,6 +349,11 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
     const PhaseSplit split = split_phases(sums, o.window_frames);
     base_avg = average_window(sums, split.baseline, o.window_frames, o.normalise_gains);
     worn_avg = average_window(sums, split.worn, o.window_frames, o.normalise_gains);
+    if (own_geometry) {  // the worn window where its frames were, not registered to the baseline's first frame
+      Vec2 mean = Vec2::Zero();
+      for (int f = worn_avg.window.first; f < worn_avg.window.first + worn_avg.window.count; ++f) mean += sums.shift_px[f];
+      if (worn_avg.window.count > 0 && mean.allFinite()) worn_avg.residual_shift_px -= mean / worn_avg.window.count;
+    }
     a.baseline = phase_report(sums, base_avg, o.compensate_motion);
     a.worn = phase_report(sums, worn_avg, o.compensate_motion);
     a.split = split;
@@ -261,8 +374,17 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
     worn_frame = worn.last_frame;
     if (!worn.shift_px.empty() && worn.shift_px.back().allFinite()) worn_frame_shift = worn.shift_px.back();
   }
+  // The baseline's own geometry (held off the skin, or no part): its map at the given or estimated gap.
+  std::optional<RefractionMap> base_map;
+  std::optional<InverseMap> base_inv;
+  if (own_geometry) {
+    base_map = baseline_geometry(scene, base_avg, worn_avg, a, o);
+    base_inv = compute_inverse_map(*base_map, scene.inverse_options, scene.contact);
+  }
   // Glare first: a mostly-glare capture is refused as such, and saturated glare is not overexposure.
-  a.glare = detect_glare(base_avg, worn_avg, seen_pixels(map, base_avg.roi), o.glare);
+  // The phases are compared where they see the same skin.
+  const PhaseAverage base_for_glare = own_geometry ? in_worn_geometry(base_avg, map, *base_inv) : base_avg;
+  a.glare = detect_glare(base_for_glare, worn_avg, seen_pixels(map, base_avg.roi), o.glare);
   check_glare(a.glare, a.baseline, a.worn, o.glare, a.warnings);
   const double glare_of_roi = a.glare.empty() ? 0.0 : cv::countNonZero(a.glare.mask) / static_cast<double>(a.glare.mask.total());
   check_exposure(base_avg, a.baseline.source, "baseline", o, glare_of_roi);
@@ -289,7 +411,8 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
   BlanchingOptions bo = o.blanching;
   if (!a.glare.empty()) bo.excluded = a.glare_texels;
   bo.spatial_noise = a.baseline.lossy || a.worn.lossy;
-  a.signal = compute_blanching(base_avg, worn_avg, inv, bo);
+  if (own_geometry) bo.log_transmittance_ratio = log_transmittance_ratio(map, inv, *base_map, *base_inv);
+  a.signal = compute_blanching(base_avg, worn_avg, inv, bo, base_inv ? &*base_inv : nullptr);
   if (bo.spatial_noise) warn_lossy(a);
   for (const auto& w : a.signal.warnings) a.warnings.push_back(w);
   const ChartGrid& g = a.signal.y.grid;

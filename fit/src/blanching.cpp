@@ -132,18 +132,23 @@ ChartField smooth_field(const ChartField& field, double sigma_mm) {
 }
 
 BlanchingSignal compute_blanching(const PhaseAverage& baseline, const PhaseAverage& worn, const InverseMap& inverse,
-                                  const BlanchingOptions& options) {
+                                  const BlanchingOptions& options, const InverseMap* baseline_inverse) {
   if (!(options.smoothing_mm >= 0) || !std::isfinite(options.smoothing_mm))
     throw std::invalid_argument("compute_blanching: smoothing_mm must be >= 0");
   BlanchingSignal s;
   const ChartGrid g = grid_of(inverse);
-  s.baseline_green = resample_to_chart(baseline, inverse);
+  const InverseMap& base_inv = baseline_inverse ? *baseline_inverse : inverse;
+  if (base_inv.width != inverse.width || base_inv.height != inverse.height || base_inv.uv_origin != inverse.uv_origin)
+    throw std::invalid_argument("compute_blanching: the baseline's inverse map is on another chart grid");
+  if (!options.log_transmittance_ratio.empty() && options.log_transmittance_ratio.size() != g.size())
+    throw std::invalid_argument("compute_blanching: log_transmittance_ratio is not one value per texel");
+  s.baseline_green = resample_to_chart(baseline, base_inv);
   s.worn_green = resample_to_chart(worn, inverse);
   // Variances of the two averages on the chart (same resampling).
   PhaseAverage base_var = baseline, worn_var = worn;
   base_var.mean = baseline.variance;
   worn_var.mean = worn.variance;
-  const ChartField vb = resample_to_chart(base_var, inverse), vw = resample_to_chart(worn_var, inverse);
+  const ChartField vb = resample_to_chart(base_var, base_inv), vw = resample_to_chart(worn_var, inverse);
 
   ChartField raw = empty_field(g), sigma = empty_field(g);
   s.plain_difference = empty_field(g);
@@ -153,6 +158,13 @@ BlanchingSignal compute_blanching(const PhaseAverage& baseline, const PhaseAvera
     const float G = s.worn_green.value[k], G0 = s.baseline_green.value[k];
     if (!(std::isfinite(G) && std::isfinite(G0)) || G < kDark || G0 < kDark) continue;
     raw.value[k] = std::log(G / G0);
+    if (!options.log_transmittance_ratio.empty()) {
+      if (!std::isfinite(options.log_transmittance_ratio[k])) {
+        raw.value[k] = kNaN;
+        continue;
+      }
+      raw.value[k] -= options.log_transmittance_ratio[k];
+    }
     sigma.value[k] = std::sqrt(std::max(0.f, vw.value[k]) / (G * G) + std::max(0.f, vb.value[k]) / (G0 * G0));
     s.plain_difference.value[k] = static_cast<float>(255.0 * (srgb::from_linear(G) - srgb::from_linear(G0)));
     ++s.texels_seen;

@@ -304,6 +304,10 @@ void write_truth(const std::filesystem::path& dir, const PressureFieldSpec& spec
                            "on through the worn one): h = 0 until press_time_s, then 1 − exp(−(t − press_time_s)/tau_on_s); after "
                            "release_time_s (when there are released frames) h(release_time_s)·exp(−(t − release_time_s)/tau_off_s)"}}},
       {"camera", camera_json(cam)},
+      {"baseline", {{"part", to_string(cap.baseline.part)},
+                    {"gap_mm", cap.baseline.part == BaselinePart::touching ? 0.0 : cap.baseline.gap_mm},
+                    {"note", "the not-worn frames: the skin gap_mm beyond the contact surface (along its normals), the part held off "
+                             "it, absent, or touching as when worn"}}},
       {"motion", {{"step_px", cam.motion_step_px}, {"drift_px_per_s", cam.motion_drift_px_per_s},
                   {"tremor_px", cam.motion_tremor_px}, {"tremor_hz", cam.motion_tremor_hz},
                   {"rotation_deg", cam.motion_rotation_deg}, {"shift_px_per_frame", shifts},

@@ -77,6 +77,12 @@ double press_lag(const Timeline& tl, const SkinParameters& skin, double t) {
   if (tl.release_frames() < 1 || t <= tr) return 1 - std::exp(-(t - tp) / skin.tau_on_s);
   return (1 - std::exp(-(tr - tp) / skin.tau_on_s)) * std::exp(-(t - tr) / skin.tau_off_s);
 }
+
+void BaselineGeometry::validate() const {
+  if (!(std::isfinite(gap_mm) && gap_mm >= 0 && gap_mm <= 20))
+    throw std::invalid_argument("baseline.gap_mm = " + std::to_string(gap_mm) + ": must be a length from 0 to 20 mm");
+}
+
 void Timeline::validate() const {
   if (!(fps > 0 && fps <= 1000)) throw std::invalid_argument("Timeline.fps must be in (0, 1000]");
   if (!(baseline_s > 0 && press_s > 0) || baseline_frames() < 1 || press_frames() < 1)
@@ -472,8 +478,10 @@ void CaptureWriter::finish() {
 CaptureSummary render_captures(const CaptureRenderer& r, const SkinParameters& skin, const Timeline& tl,
                                const CameraSettings& cam, VideoFormat format, const std::filesystem::path& dir,
                                std::uint64_t seed, const std::function<void(int, int)>& progress,
-                               const PhotometricSchedule* photometry) {
+                               const PhotometricSchedule* photometry, const CaptureRenderer* baseline) {
   tl.validate();
+  if (baseline && (baseline->width() != r.width() || baseline->height() != r.height()))
+    throw std::invalid_argument("render_captures: the baseline renderer's image differs from the worn one's");
   CaptureSummary sum;
   sum.baseline_frames = tl.baseline_frames();
   sum.press_frames = tl.press_frames();
@@ -511,7 +519,8 @@ CaptureSummary render_captures(const CaptureRenderer& r, const SkinParameters& s
     const double h = press_lag(tl, skin, t);
     auto t0 = std::chrono::steady_clock::now();
     const std::optional<FrameLight> light = photometry ? std::optional(photometry->frame(k)) : std::nullopt;
-    cv::Mat frame = r.render(t, h, FrameMotion(sum.shift_px[k], sum.angle_rad[k]), static_cast<std::uint64_t>(k), light ? &*light : nullptr);
+    const CaptureRenderer& through = baseline && k < sum.baseline_frames ? *baseline : r;
+    cv::Mat frame = through.render(t, h, FrameMotion(sum.shift_px[k], sum.angle_rad[k]), static_cast<std::uint64_t>(k), light ? &*light : nullptr);
     sum.render_ms += ms_since(t0);
     t0 = std::chrono::steady_clock::now();
     if (pending.valid()) pending.get();

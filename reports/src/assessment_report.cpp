@@ -74,6 +74,26 @@ json glare_json(const GlareMask& g, const Coverage& cov) {
           {"static_sigma", num(g.static_sigma)}};
 }
 
+json baseline_geometry_json(const BaselineGeometryReport& b) {
+  json j = {{"part", to_string(b.part)},
+            {"gap_mm", num(b.gap_mm)},
+            {"gap_sigma_mm", num(b.gap_sigma_mm)},
+            {"gap_source", b.part == BaselinePart::touching ? "none" : b.estimate ? (b.gap_estimated ? "estimated" : "unsure") : "given"},
+            {"pixels_seeing_skin", b.pixels_seeing_skin}};
+  if (b.estimate) {
+    const GapEstimate& e = *b.estimate;
+    json curve = json::array();
+    for (const auto& [g, c] : e.curve) curve.push_back({num(g), num(c)});
+    j["estimate"] = {{"texture_match", num(e.match)},
+                     {"shift_mm_per_mm", num(e.shift_mm_per_mm)},
+                     {"pixels", e.pixels},
+                     {"pressed_pixels_left_out", e.pressed_pixels},
+                     {"problem", e.problem.empty() ? json(nullptr) : json(e.problem)},
+                     {"curve_gap_mm_cost", curve}};
+  }
+  return j;
+}
+
 /// Colour range of the signal: 0 to its 99th percentile over the seen texels (at least 5 σ).
 std::pair<double, double> signal_range(const BlanchingSignal& signal) {
   std::vector<float> v;
@@ -282,6 +302,7 @@ json assessment_report_json(const Assessment& a, const AssessmentScene& scene, c
         {"pressed_unseen_share", num(pressed_seen + pressed_unseen > 0 ? pressed_unseen / (pressed_seen + pressed_unseen) : 0.0)}}},
       {"captures", {{"baseline", phase_json(a.baseline)}, {"worn", phase_json(a.worn)}, {"split", split}}},
       {"glare", glare_json(a.glare, cov)},
+      {"baseline_geometry", baseline_geometry_json(a.baseline_geometry)},
       {"signal",
        {{"feature", "log_green_ratio"},
         {"reference", a.signal.reference},

@@ -469,6 +469,18 @@ std::string calibration_table(const json& report) {
   s += row({th("pose uncertainty"), td(is_number(at(pose, "uncertainty_mm"))
                                           ? num(pose["uncertainty_mm"], 3) + " mm, " + num(at(pose, "uncertainty_deg"), 3) + "&deg;"
                                           : "not known")});
+  if (const json& b = at(report, "baseline_geometry"); b.is_object()) {
+    const std::string part = text(at(b, "part")), source = text(at(b, "gap_source"));
+    std::string what = part == "touching" ? "the part touching the skin, as when worn"
+                       : part == "absent" ? "without the part, the skin " + num(at(b, "gap_mm"), 2)
+                                          : "the part held " + num(at(b, "gap_mm"), 2);
+    if (part != "touching") {
+      what += source == "given" ? " mm" : " &plusmn; " + num(at(b, "gap_sigma_mm"), 2) + " mm";
+      what += part == "absent" ? " beyond the contact surface" : " off the skin";
+      what += source == "given" ? " (given)" : source == "estimated" ? " (estimated from the captures)" : " (estimate unsure)";
+    }
+    s += row({th("not-worn capture"), "<td data-key=\"baseline-gap\">" + what + "</td>"});
+  }
   if (p.is_object()) {
     s += row({th("pressure calibration"), td(text(at(p, "source")) + " (person: " + text(at(p, "person")) + ")")});
     s += row({th("model"), td(text(at(p, "model")) + ": p50 " + num(at(p, "p50_kpa"), 2) + " kPa, width " +

@@ -6,6 +6,7 @@
 #include <clearfit/cli/scene.hpp>
 #include <clearfit/fit/assessment.hpp>
 #include <clearfit/fit/pressure_model.hpp>
+#include <clearfit/refraction/baseline_map.hpp>
 #include <clearfit/refraction/inverse_map.hpp>
 
 #include <memory>
@@ -33,6 +34,10 @@ struct Prepared {
   std::unique_ptr<LoadedPart> part;
   RefractionMap map;
   InverseMap inverse;
+  InverseMapOptions inverse_options;
+  std::unique_ptr<BaselineRays> baseline_rays;  ///< held / absent: the not-worn capture's own rays (baseline_map.hpp)
+  BaselinePart baseline_part = BaselinePart::touching;
+  std::optional<double> baseline_gap_mm;        ///< nullopt: estimated (auto)
   std::optional<PressureCalibration> calibration;
   std::vector<std::string> notes;
   std::string cache;
@@ -40,7 +45,8 @@ struct Prepared {
   CaptureSources sources;
   AssessmentScene view() const {
     return {&part->mesh, &part->contact, &*part->chart, &part->camera, part->cam_from_part, &map, &inverse,
-            part->pose_covariance ? &*part->pose_covariance : nullptr};
+            part->pose_covariance ? &*part->pose_covariance : nullptr, baseline_part, baseline_gap_mm, baseline_rays.get(),
+            inverse_options};
   }
 };
 

@@ -15,6 +15,7 @@
 //   map: {normals: smooth, mode: adaptive, grid_step: 16, tolerance_um: 1.0, chart: auto, exact_reasons: false}
 //   outputs: {map: out/map.npy, stats: out/map-stats.json, inverse: out/inverse.npy, texel_mm: 0.05,
 //             folder: out}
+//   baseline: {part: held, gap_mm: auto}   # how the not-worn capture was filmed (held | absent | touching)
 //   captures: {baseline: a.mkv, worn: b.mkv, both: c.mkv, window_frames: 100, max_motion_px: 10,
 //              motion_compensation: true}
 //   calibration: {pressure: calibration.json, person: P1}
@@ -48,6 +49,7 @@
 #include <clearfit/fit/assessment.hpp>
 #include <clearfit/fit/simulate.hpp>
 #include <clearfit/fit/simulate_photometric.hpp>
+#include <clearfit/refraction/baseline_map.hpp>
 #include <clearfit/refraction/map.hpp>
 #include <CLI/CLI.hpp>
 #include <yaml-cpp/yaml.h>
@@ -281,6 +283,18 @@ struct CapturesSection {
   void validate() const;
 };
 
+/// `baseline:`: how the not-worn capture was filmed (refraction/baseline_map.hpp):
+/// the part held off the skin by an air gap, absent, or touching as when worn;
+/// the gap in mm or `auto` (estimated from the captures, fit/baseline_gap.hpp).
+struct BaselineSection {
+  BaselinePart part = BaselinePart::held;
+  std::string gap_mm = "auto";
+  /// The gap given (mm), or nullopt for auto. Call after validate().
+  std::optional<double> gap() const;
+  void bind(SceneFields& f);
+  void validate() const;
+};
+
 /// `calibration:`: the person's pressure calibration.
 struct CalibrationSection {
   std::string pressure, person;
@@ -333,6 +347,7 @@ struct SimulationSection {
   sim::PressureFieldSpec field;
   std::optional<std::string> pressure_map;
   std::optional<sim::PressOptions> presses;
+  sim::BaselineGeometry baseline;  ///< how the not-worn capture is rendered (default: held 1 mm off the skin)
   sim::PhotometricEffects photometric;  ///< glare, exposure steps and drifts, flicker drift (cli/simulate_photometric.cpp)
   void read(const YAML::Node& node, const SceneReader& reader);
   void validate() const;
@@ -345,6 +360,7 @@ struct Scene {
   MapSection map;
   OutputsSection outputs;
   CapturesSection captures;
+  BaselineSection baseline;
   CalibrationSection calibration;
   AssessSection assess;
   std::optional<SimulationSection> simulation;

@@ -6,6 +6,7 @@
 // module turns the result into files.
 #include <clearfit/camera/camera_model.hpp>
 #include <clearfit/camera/pose_file.hpp>
+#include <clearfit/fit/baseline_gap.hpp>
 #include <clearfit/fit/blanching.hpp>
 #include <clearfit/fit/capture.hpp>
 #include <clearfit/fit/glare.hpp>
@@ -33,6 +34,7 @@ struct AssessmentOptions {
   BlanchingOptions blanching;
   GlareOptions glare;                ///< specular highlights masked out of the signal (glare.hpp)
   bool normalise_gains = true;       ///< divide each chunk by its exposure / white-balance / flicker gain (photometric.hpp)
+  GapSearchOptions gap;              ///< estimating the not-worn capture's gap (baseline_gap.hpp)
   std::vector<double> thresholds_kpa{4.3, 5.5};  ///< capillary closing, the study's blanching onset
   /// Without a calibration: thresholds on the signal y, in multiples of the
   /// noise (default 5 σ) unless given as values.
@@ -71,8 +73,18 @@ struct Coverage {
   std::string blocked_reason;           ///< the forward map's dominant reason for pixels that miss the skin
 };
 
+/// The not-worn capture's geometry as assessed (baseline_map.hpp).
+struct BaselineGeometryReport {
+  BaselinePart part = BaselinePart::touching;
+  double gap_mm = 0, gap_sigma_mm = 0;  ///< sigma 0 when given
+  bool gap_estimated = false;           ///< estimated from the captures (auto)
+  std::optional<GapEstimate> estimate;  ///< the estimate's details (auto)
+  long long pixels_seeing_skin = 0;     ///< in the baseline's own map
+};
+
 struct Assessment {
   PhaseReport baseline, worn;
+  BaselineGeometryReport baseline_geometry;
   std::optional<PhaseSplit> split;
   BlanchingSignal signal;
   ChartRaster raster;
@@ -116,11 +128,18 @@ struct AssessmentScene {
   const InverseMap* inverse = nullptr;
   /// The pose's covariance (camera/pose_file.hpp); nullptr: unknown (no position term in the σ).
   const PoseCovariance* pose_covariance = nullptr;
+  /// The not-worn capture's geometry: touching (forward and inverse serve both
+  /// phases), or held / absent through `baseline_rays` at the gap given, or
+  /// estimated from the captures (estimate_gap) when none is given.
+  BaselinePart baseline_part = BaselinePart::touching;
+  std::optional<double> baseline_gap_mm;
+  const BaselineRays* baseline_rays = nullptr;
+  InverseMapOptions inverse_options;  ///< those `inverse` was made with: the baseline's inverse map shares its grid
 };
 
 /// Runs the assessment. Throws InputError on bad captures (see capture.hpp),
 /// windows longer than the captures, saturated or dark windows, a missing
-/// phase.
+/// phase, a baseline gap that matters but cannot be estimated.
 Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& captures,
                            const std::optional<PressureCalibration>& calibration, const AssessmentOptions& options);
 

@@ -34,6 +34,10 @@ struct BlanchingOptions {
   /// of the smoothed feature over the unpressed skin (where both phases see the same skin, what
   /// is left is error), beyond what the frames' spread explains.
   bool spatial_noise = false;
+  /// Per chart texel: ln(T_worn / T_baseline), the two phases' Fresnel
+  /// transmittances when each has its own map (baseline_map.hpp), subtracted
+  /// from y_raw; empty: none (one map, they cancel).
+  std::vector<float> log_transmittance_ratio;
 };
 
 struct BlanchingSignal {
@@ -51,11 +55,13 @@ struct BlanchingSignal {
 };
 
 /// Computes the signal (see the file comment). `inverse` gives per texel the
-/// camera pixel; both averages must come from one reference frame (one
-/// MotionReference). Throws InputError when no texel is seen, or the reference
-/// disk holds no seen texel.
+/// camera pixel; `baseline_inverse` (optional, same grid) the baseline's own
+/// pixel when the not-worn capture has its own geometry (baseline_map.hpp),
+/// else `inverse` serves both and both averages must come from one reference
+/// frame (one MotionReference). Throws InputError when no texel is seen, or
+/// the reference disk holds no seen texel.
 BlanchingSignal compute_blanching(const PhaseAverage& baseline, const PhaseAverage& worn, const InverseMap& inverse,
-                                  const BlanchingOptions& options = {});
+                                  const BlanchingOptions& options = {}, const InverseMap* baseline_inverse = nullptr);
 
 /// Resamples a camera-image average onto the chart (bilinear; NaN outside the
 /// image or where the texel is not seen): the texel's pixel plus the average's

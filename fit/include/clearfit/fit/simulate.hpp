@@ -22,6 +22,7 @@
 #include <clearfit/camera/camera_model.hpp>
 #include <clearfit/fit/chart_field.hpp>
 #include <clearfit/fit/skin_model.hpp>
+#include <clearfit/refraction/baseline_map.hpp>
 #include <clearfit/refraction/map.hpp>
 
 #include <opencv2/core.hpp>
@@ -139,6 +140,17 @@ struct CameraSettings {
   int supersample = 2;            ///< n × n samples per pixel (1..4)
   double texture_mm = 0.02;       ///< texel of the fine skin texture the samples read
   /// Throws std::invalid_argument naming the field, its value and the rule.
+  void validate() const;
+};
+
+/// How the not-worn capture is rendered: through its own refraction map
+/// (refraction/baseline_map.hpp), the skin `gap_mm` beyond the contact
+/// surface with the part held off it (or absent); touching renders it
+/// through the worn map.
+struct BaselineGeometry {
+  BaselinePart part = BaselinePart::held;
+  double gap_mm = 1.0;
+  /// Throws std::invalid_argument unless 0 <= gap_mm <= 20 (ignored when touching).
   void validate() const;
 };
 
@@ -271,15 +283,17 @@ struct CaptureSummary {
   std::vector<Vec2> shift_px;           ///< per frame (baseline then press)
   std::vector<double> angle_rad;        ///< per frame: rotation about the image centre
   double render_ms = 0, write_ms = 0;
+  BaselineGeometry baseline{BaselinePart::touching, 0.0};  ///< how the baseline frames were rendered (set by the caller)
 };
 
 /// Renders the time line into `out_dir`: baseline + worn (or capture) videos.
 /// `progress(done, total)` is called after each frame (may be empty); `photometry` (optional)
-/// gives each frame's gains and glare (simulate_photometric.hpp).
+/// gives each frame's gains and glare (simulate_photometric.hpp); `baseline` (optional) renders
+/// the not-worn frames through their own map (BaselineGeometry), else `renderer` renders every frame.
 CaptureSummary render_captures(const CaptureRenderer& renderer, const SkinParameters& skin, const Timeline& timeline,
                                const CameraSettings& camera, VideoFormat format, const std::filesystem::path& out_dir,
                                std::uint64_t seed, const std::function<void(int, int)>& progress = {},
-                               const PhotometricSchedule* photometry = nullptr);
+                               const PhotometricSchedule* photometry = nullptr, const CaptureRenderer* baseline = nullptr);
 
 /// Calibration presses through the forward model (no images): a flat
 /// cylindrical indenter of each diameter at `levels` mean pressures evenly

@@ -1,0 +1,314 @@
+// The not-worn capture's gap from the captures (baseline_gap.hpp).
+#include <clearfit/fit/baseline_gap.hpp>
+#include <clearfit/fit/blanching.hpp>
+
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <random>
+#include <sstream>
+
+namespace clearfit {
+namespace {
+
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+constexpr int kBlockPx = 32;
+constexpr std::size_t kMaxSamples = 150000;  ///< more baseline pixels are subsampled evenly
+
+std::string fmt(double v, int digits = 2) {
+  std::ostringstream s;
+  s.setf(std::ios::fixed);
+  s.precision(digits);
+  s << v;
+  return s.str();
+}
+
+double median(std::vector<double> v) {
+  if (v.empty()) return std::numeric_limits<double>::quiet_NaN();
+  const auto mid = v.begin() + static_cast<std::ptrdiff_t>(v.size() / 2);
+  std::nth_element(v.begin(), mid, v.end());
+  return *mid;
+}
+
+/// Log of a linear field where it is usable, NaN elsewhere.
+ChartField log_field(const ChartField& f) {
+  ChartField out{f.grid, std::vector<float>(f.value.size(), kNaN)};
+  for (std::size_t k = 0; k < f.value.size(); ++k)
+    if (std::isfinite(f.value[k]) && f.value[k] > 1e-4f) out.value[k] = std::log(f.value[k]);
+  return out;
+}
+
+/// Bilinear sample of a CV_32F image with NaN holes at (x, y); NaN outside or next to a hole.
+float bilinear(const cv::Mat& m, double x, double y) {
+  const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+  if (x0 < 0 || y0 < 0 || x0 + 1 >= m.cols || y0 + 1 >= m.rows) return kNaN;
+  const float tx = static_cast<float>(x - x0), ty = static_cast<float>(y - y0);
+  const float a = m.at<float>(y0, x0), b = m.at<float>(y0, x0 + 1), c = m.at<float>(y0 + 1, x0), d = m.at<float>(y0 + 1, x0 + 1);
+  return (1 - ty) * ((1 - tx) * a + tx * b) + ty * ((1 - tx) * c + tx * d);
+}
+
+/// What every gap is compared on: per exit ray (index into rays.pixels()) its
+/// pixel's baseline texture and log green, and its block.
+struct Samples {
+  std::vector<std::uint32_t> ray;
+  std::vector<float> texture, log_green;
+  std::vector<int> block;
+  int blocks = 0;
+};
+
+/// Chart uv of each sample at one gap (NaN where the baseline map is invalid).
+std::vector<Vec2> uv_at(const BaselineRays& rays, const Samples& s, double gap) { return rays.chart_uv(gap, s.ray); }
+
+/// Camera pixels per mm of skin at the baseline map of `gap` (median over horizontal neighbours).
+double pixels_per_mm(const BaselineRays& rays, double gap) {
+  const auto& px = rays.pixels();
+  std::vector<std::uint32_t> pairs;  // i, i + 1: horizontal neighbours
+  const std::size_t every = std::max<std::size_t>(1, px.size() / 20000);
+  for (std::size_t i = 0; i + 1 < px.size(); i += every)
+    if (px[i + 1] == px[i] + 1 && (px[i] + 1) % rays.width() != 0) pairs.push_back(static_cast<std::uint32_t>(i)), pairs.push_back(static_cast<std::uint32_t>(i + 1));
+  const std::vector<Vec2> uv = rays.chart_uv(gap, pairs);
+  std::vector<double> steps;
+  for (std::size_t k = 0; k + 1 < uv.size(); k += 2)
+    if (const double d = (uv[k + 1] - uv[k]).norm(); d > 0) steps.push_back(d);
+  const double mm = median(std::move(steps));
+  return std::isfinite(mm) && mm > 0 ? 1.0 / mm : 1.0;
+}
+
+/// The baseline's texture per candidate pixel: log green minus its blur,
+/// normalised over the pixels that see the skin at gap `seen_at` (not the background).
+Samples baseline_samples(const BaselineRays& rays, const PhaseAverage& base, double sigma_px, double seen_at) {
+  const cv::Rect& roi = base.roi;
+  const RefractionMap seen = rays.map(seen_at);
+  cv::Mat L(roi.size(), CV_32F, cv::Scalar(0)), w(roi.size(), CV_32F, cv::Scalar(0));
+  for (int y = 0; y < roi.height; ++y)
+    for (int x = 0; x < roi.width; ++x) {
+      // The average at q shows the image at q − residual + roi origin.
+      const int ix = static_cast<int>(std::lround(x - base.residual_shift_px.x() + roi.x));
+      const int iy = static_cast<int>(std::lround(y - base.residual_shift_px.y() + roi.y));
+      if (ix < 0 || iy < 0 || ix >= seen.width || iy >= seen.height || seen.status[seen.index(ix, iy)] != PixelStatus::valid) continue;
+      if (const float g = base.mean.at<float>(y, x); std::isfinite(g) && g > 1e-4f) L.at<float>(y, x) = std::log(g), w.at<float>(y, x) = 1;
+    }
+  cv::Mat Lb, wb;
+  cv::GaussianBlur(L, Lb, cv::Size(), sigma_px, sigma_px, cv::BORDER_CONSTANT);
+  cv::GaussianBlur(w, wb, cv::Size(), sigma_px, sigma_px, cv::BORDER_CONSTANT);
+  cv::Mat tex(roi.size(), CV_32F, cv::Scalar(kNaN)), lg(roi.size(), CV_32F, cv::Scalar(kNaN));
+  for (int y = 0; y < roi.height; ++y)
+    for (int x = 0; x < roi.width; ++x)
+      if (w.at<float>(y, x) > 0 && wb.at<float>(y, x) > 0.05f) {
+        tex.at<float>(y, x) = L.at<float>(y, x) - Lb.at<float>(y, x) / wb.at<float>(y, x);
+        lg.at<float>(y, x) = L.at<float>(y, x);
+      }
+  Samples s;
+  const int bx = (rays.width() + kBlockPx - 1) / kBlockPx;
+  std::vector<int> block_id(static_cast<std::size_t>(bx) * ((rays.height() + kBlockPx - 1) / kBlockPx), -1);
+  const auto& px = rays.pixels();
+  const std::size_t every = std::max<std::size_t>(1, (px.size() + kMaxSamples - 1) / kMaxSamples);
+  for (std::size_t ray = 0; ray < px.size(); ray += every) {
+    const std::uint32_t p = px[ray];
+    const int x = static_cast<int>(p % rays.width()), y = static_cast<int>(p / rays.width());
+    // The image at pixel p is the average at p + residual − roi origin.
+    const double qx = x + base.residual_shift_px.x() - roi.x, qy = y + base.residual_shift_px.y() - roi.y;
+    const float t = bilinear(tex, qx, qy), l = bilinear(lg, qx, qy);
+    if (!std::isfinite(t) || !std::isfinite(l)) continue;
+    int& b = block_id[static_cast<std::size_t>(y / kBlockPx) * bx + x / kBlockPx];
+    if (b < 0) b = s.blocks++;
+    s.ray.push_back(static_cast<std::uint32_t>(ray)), s.texture.push_back(t), s.log_green.push_back(l), s.block.push_back(b);
+  }
+  return s;
+}
+
+/// Normalised correlation of the samples' texture with the worn texture at `uv` (NaN where it is undefined).
+double correlation(const Samples& s, const std::vector<Vec2>& uv, const ChartField& worn_texture, const std::vector<char>& use,
+                   long long* count = nullptr) {
+  double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
+  long long n = 0;
+  for (std::size_t i = 0; i < s.ray.size(); ++i) {
+    if (!use[i] || !uv[i].allFinite()) continue;
+    const double y = worn_texture.sample(uv[i]);
+    if (!std::isfinite(y)) continue;
+    const double x = s.texture[i];
+    sx += x, sy += y, sxx += x * x, syy += y * y, sxy += x * y, ++n;
+  }
+  if (count) *count = n;
+  if (n < 100) return 0;
+  const double vx = sxx - sx * sx / n, vy = syy - sy * sy / n;
+  return vx > 0 && vy > 0 ? (sxy - sx * sy / n) / std::sqrt(vx * vy) : 0;
+}
+
+/// Pixels of pressed places at `uv`: the log ratio worn / baseline, smoothed on
+/// the chart, more than 4 robust deviations above its median.
+std::vector<char> not_pressed(const Samples& s, const std::vector<Vec2>& uv, const ChartField& worn_log) {
+  const ChartGrid& g = worn_log.grid;
+  std::vector<float> sum(g.size(), 0.f), cnt(g.size(), 0.f);
+  std::vector<float> ratio(s.ray.size(), kNaN);
+  for (std::size_t i = 0; i < s.ray.size(); ++i) {
+    if (!uv[i].allFinite()) continue;
+    const float w = worn_log.sample(uv[i]);
+    if (!std::isfinite(w)) continue;
+    ratio[i] = w - s.log_green[i];
+    const int ti = static_cast<int>(std::lround((uv[i].x() - g.uv_origin.x()) / g.texel_mm));
+    const int tj = static_cast<int>(std::lround((uv[i].y() - g.uv_origin.y()) / g.texel_mm));
+    if (ti < 0 || tj < 0 || ti >= g.width || tj >= g.height) continue;
+    sum[g.index(ti, tj)] += ratio[i], cnt[g.index(ti, tj)] += 1;
+  }
+  ChartField r{g, std::vector<float>(g.size(), kNaN)};
+  for (std::size_t k = 0; k < g.size(); ++k)
+    if (cnt[k] > 0) r.value[k] = sum[k] / cnt[k];
+  r = smooth_field(r, 0.5);
+  std::vector<double> v;
+  for (float x : r.value)
+    if (std::isfinite(x)) v.push_back(x);
+  const double m = median(v);
+  for (double& x : v) x = std::abs(x - m);
+  const double limit = m + 4 * 1.4826 * std::max(median(v), 1e-6);
+  std::vector<char> keep(s.ray.size(), 1);
+  for (std::size_t i = 0; i < s.ray.size(); ++i)
+    if (uv[i].allFinite())
+      if (const float x = r.sample(uv[i]); std::isfinite(x) && x > limit) keep[i] = 0;
+  return keep;
+}
+
+/// Vertex of the least-squares parabola through (g_j, t_j); NaN unless it opens upwards.
+double parabola_vertex(const std::vector<double>& g, const std::vector<double>& t) {
+  const double c = g[g.size() / 2];
+  Eigen::MatrixXd A(g.size(), 3);
+  Eigen::VectorXd b(g.size());
+  for (std::size_t j = 0; j < g.size(); ++j) A(j, 0) = (g[j] - c) * (g[j] - c), A(j, 1) = g[j] - c, A(j, 2) = 1, b(j) = t[j];
+  const Eigen::Vector3d q = A.colPivHouseholderQr().solve(b);
+  return q(0) > 0 ? c - q(1) / (2 * q(0)) : std::numeric_limits<double>::quiet_NaN();
+}
+
+/// Fine stage around `centre`: the vertex of the summed block residuals, its bootstrap σ, the
+/// match and the pixels compared.
+struct Fine {
+  double gap = NAN, sigma = NAN, match = 0, shift = 0;
+  long long pixels = 0;
+};
+Fine fine_fit(const BaselineRays& rays, const Samples& s, const ChartField& worn_texture, const std::vector<char>& keep,
+              double centre, const GapSearchOptions& o) {
+  const double d = o.step_mm / 4;
+  const double lo = std::clamp(centre - 2 * d, 0.0, o.max_mm - 4 * d);
+  std::vector<double> gaps;
+  std::vector<std::vector<Vec2>> uv;
+  for (int j = 0; j < 5; ++j) gaps.push_back(lo + j * d), uv.push_back(uv_at(rays, s, gaps.back()));
+  // Pixels compared at every gap.
+  std::vector<char> use = keep;
+  std::vector<std::array<float, 5>> y(s.ray.size());
+  for (std::size_t i = 0; i < s.ray.size(); ++i)
+    for (int j = 0; j < 5 && use[i]; ++j) {
+      y[i][j] = uv[j][i].allFinite() ? worn_texture.sample(uv[j][i]) : kNaN;
+      if (!std::isfinite(y[i][j])) use[i] = 0;
+    }
+  Fine f;
+  f.match = correlation(s, uv[2], worn_texture, use, &f.pixels);
+  double sxy = 0, syy = 0;
+  std::vector<double> shifts;
+  for (std::size_t i = 0; i < s.ray.size(); ++i)
+    if (use[i]) {
+      sxy += s.texture[i] * y[i][2], syy += double(y[i][2]) * y[i][2];
+      if (shifts.size() < 50000) shifts.push_back((uv[4][i] - uv[0][i]).norm() / (gaps[4] - gaps[0]));
+    }
+  f.shift = median(std::move(shifts));
+  if (f.pixels < 100 || !(syy > 0)) return f;
+  const double a = sxy / syy;
+  std::vector<std::array<double, 5>> block(s.blocks, std::array<double, 5>{});
+  for (std::size_t i = 0; i < s.ray.size(); ++i)
+    if (use[i])
+      for (int j = 0; j < 5; ++j) {
+        const double r = s.texture[i] - a * y[i][j];
+        block[s.block[i]][j] += r * r;
+      }
+  auto vertex = [&](const std::vector<int>& which) {
+    std::vector<double> t(5, 0.0);
+    for (int b : which)
+      for (int j = 0; j < 5; ++j) t[j] += block[b][j];
+    return parabola_vertex(gaps, t);
+  };
+  std::vector<int> all(s.blocks);
+  for (int b = 0; b < s.blocks; ++b) all[b] = b;
+  f.gap = vertex(all);
+  std::mt19937_64 rng(o.seed);
+  std::uniform_int_distribution<int> pick(0, std::max(0, s.blocks - 1));
+  double sum = 0, sum2 = 0;
+  int n = 0;
+  std::vector<int> draw(s.blocks);
+  for (int r = 0; r < o.bootstrap; ++r) {
+    for (int& b : draw) b = pick(rng);
+    const double v = vertex(draw);
+    if (!std::isfinite(v)) continue;
+    sum += v, sum2 += v * v, ++n;
+  }
+  f.sigma = n > 10 ? std::sqrt(std::max(0.0, sum2 / n - (sum / n) * (sum / n))) : NAN;
+  if (n < o.bootstrap / 2) f.sigma = NAN;  // the parabola often does not open upwards: no minimum here
+  return f;
+}
+
+}  // namespace
+
+void GapSearchOptions::validate() const {
+  auto fail = [](const std::string& what) { throw std::invalid_argument("GapSearchOptions::" + what); };
+  if (!(std::isfinite(max_mm) && max_mm > 0 && max_mm <= 20)) fail("max_mm = " + std::to_string(max_mm) + ": must be in (0, 20] mm");
+  if (!(std::isfinite(step_mm) && step_mm > 0 && step_mm <= max_mm / 4))
+    fail("step_mm = " + std::to_string(step_mm) + ": must be positive and at most max_mm / 4");
+  if (!(std::isfinite(highpass_mm) && highpass_mm > 0)) fail("highpass_mm = " + std::to_string(highpass_mm) + ": must be positive");
+  if (!(std::isfinite(max_sigma_mm) && max_sigma_mm > 0)) fail("max_sigma_mm = " + std::to_string(max_sigma_mm) + ": must be positive");
+  if (!(min_match >= 0 && min_match < 1)) fail("min_match = " + std::to_string(min_match) + ": must be in [0, 1)");
+  if (bootstrap < 20) fail("bootstrap = " + std::to_string(bootstrap) + ": must be at least 20");
+}
+
+GapEstimate estimate_gap(const BaselineRays& rays, const PhaseAverage& baseline, const ChartField& worn_green, const GapSearchOptions& o) {
+  o.validate();
+  GapEstimate e;
+  const ChartField worn_log = log_field(worn_green);
+  ChartField worn_texture = worn_log;
+  const ChartField blurred = smooth_field(worn_log, o.highpass_mm);
+  for (std::size_t k = 0; k < worn_texture.value.size(); ++k) worn_texture.value[k] -= blurred.value[k];
+  const Samples s = baseline_samples(rays, baseline, o.highpass_mm * pixels_per_mm(rays, 0.5 * o.max_mm), 0.5 * o.max_mm);
+  const std::vector<char> everything(s.ray.size(), 1);
+  // 1. Coarse.
+  int best = -1;
+  std::vector<double> cost;
+  for (double g = 0; g <= o.max_mm + 1e-9; g += o.step_mm) {
+    cost.push_back(1 - correlation(s, uv_at(rays, s, g), worn_texture, everything));
+    e.curve.emplace_back(g, cost.back());
+    if (best < 0 || cost.back() < cost[best]) best = static_cast<int>(cost.size()) - 1;
+  }
+  const int last = static_cast<int>(cost.size()) - 1;
+  double centre = e.curve[best].first;
+  if (best > 0 && best < last) {
+    const double den = cost[best - 1] - 2 * cost[best] + cost[best + 1];
+    if (den > 0) centre += o.step_mm * 0.5 * (cost[best - 1] - cost[best + 1]) / den;
+  }
+  // 2. Pressed places out, 3. fine.
+  const std::vector<char> keep = not_pressed(s, uv_at(rays, s, centre), worn_log);
+  for (char k : keep) e.pressed_pixels += !k;
+  Fine f;
+  for (int iter = 0; iter < 4; ++iter) {
+    f = fine_fit(rays, s, worn_texture, keep, centre, o);
+    if (!std::isfinite(f.gap)) break;
+    const double d = o.step_mm / 4, lo = std::clamp(centre - 2 * d, 0.0, o.max_mm - 4 * d);
+    if (f.gap >= lo - 0.25 * d && f.gap <= lo + 4.25 * d) break;
+    centre = std::clamp(f.gap, 0.0, o.max_mm);
+  }
+  e.gap_mm = std::isfinite(f.gap) ? std::clamp(f.gap, 0.0, o.max_mm) : centre;
+  e.sigma_mm = std::isfinite(f.sigma) ? f.sigma : o.max_mm;
+  e.match = f.match;
+  e.shift_mm_per_mm = std::isfinite(f.shift) ? f.shift : 0;
+  e.pixels = f.pixels;
+  // Trustworthy?
+  const std::string at = " (best texture correlation " + fmt(1 - cost[best], 3) + " at " + fmt(e.curve[best].first) + " mm)";
+  if (s.ray.size() < 100 || f.pixels < 100)
+    e.problem = "too few baseline pixels see skin that the worn capture sees too (" + std::to_string(f.pixels) + ")";
+  else if (best == last)
+    e.problem = "the textures match best at the end of the searched range, " + fmt(o.max_mm) + " mm" + at;
+  else if (e.match < o.min_match)
+    e.problem = "the skin texture of the two captures does not match at any gap" + at;
+  else if (!std::isfinite(f.gap) || !(e.sigma_mm <= o.max_sigma_mm))
+    e.problem = "the estimate is unsure: " + fmt(e.gap_mm) + " ± " + fmt(e.sigma_mm) + " mm (at most ± " + fmt(o.max_sigma_mm) + " mm accepted)";
+  e.estimated = e.problem.empty();
+  return e;
+}
+
+}  // namespace clearfit
