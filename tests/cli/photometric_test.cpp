@@ -39,7 +39,8 @@ class PhotometricCli : public CliTest {
                    "  pressure:\n    texel_mm: 0.1\n    sources:\n"
                    "      - {name: a, type: gaussian, center_part_mm: [-6, 3, 30], peak_kpa: 14, sigma_mm: 1.6}\n"
                    "      - {name: b, type: gaussian, center_part_mm: [6, -3, 30], peak_kpa: 10, sigma_mm: 1.2}\n"
-                   "  presses: {diameters_mm: [3], levels: 9, repetitions: 3}\n" + effects);
+                   "  presses: {diameters_mm: [3], levels: 9, repetitions: 3}\n"
+                   "  baseline: {part: touching}\n" + effects);  // the photometric effects alone (the gap: baseline_gap_test.cpp)
     std::vector<std::string> args{"simulate", name + ".yaml", "--out", name, "--quiet", "--no-cache"};
     if (!presses) args.push_back("--no-presses");
     const RunResult sim = run_clearfit(args, d, d, 300);
@@ -68,7 +69,7 @@ class PhotometricCli : public CliTest {
                "mesh: " + (kWristband / "wristband.obj").string() + "\ncontact: {group: contact}\ncamera: " +
                    (caps / "camera.cameramodel").string() + "\nmap: {mode: adaptive}\noutputs: {folder: " + out_name +
                    ", texel_mm: 0.1}\ncaptures: {baseline: " + (caps / "baseline.mkv").string() + ", worn: " +
-                   (caps / "worn.mkv").string() + ", window_frames: 30}\n" + calibration + "assess: {smoothing_mm: 0.5}\n");
+                   (caps / "worn.mkv").string() + ", window_frames: 30}\n" + calibration + "assess: {smoothing_mm: 0.5}\nbaseline: {part: touching}\n");
     std::vector<std::string> args{"assess", out_name + ".yaml", "--quiet", "--no-cache", "--no-html"};
     args.insert(args.end(), extra.begin(), extra.end());
     return run_clearfit(args, work(), root() / "capture", 120);
