@@ -295,6 +295,30 @@ PhaseAverage in_worn_geometry(const PhaseAverage& base, const RefractionMap& wor
   out.residual_shift_px = Vec2::Zero();
   return out;
 }
+
+/// One video whose not-worn phase has its own geometry, read with a registration reference per
+/// view (CaptureReadOptions::max_references): each averaging window must keep one reference, else
+/// the view jumped within a phase (refused as motion). The worn window is placed where its frames
+/// were, as a worn capture of its own is: the motion measured across the change of geometry (or
+/// against another reference) is the change, not motion.
+void place_worn_window(const CaptureSums& sums, const PhaseAverage& base, PhaseAverage& worn, double max_motion_px) {
+  auto check = [&](const PhaseAverage& w, const std::string& phase) {
+    const int first = w.window.first, last = std::min<int>(w.window.first + w.window.count, static_cast<int>(sums.reference.size())) - 1;
+    for (int f = first + 1; f <= last; ++f)
+      if (sums.reference[f] != sums.reference[first])
+        throw InputError(sums.info.source.string(), "frame " + std::to_string(f),
+                         "moved more than the " + fmt(max_motion_px, 1) + " px clearfit compensates within the " + phase +
+                             " phase's averaging window (frames " + std::to_string(first) + ".." + std::to_string(last) + ")",
+                         "hold the part and the skin still while filming (a fixture helps), or raise captures.max_motion_px "
+                         "if the motion is a steady drift");
+  };
+  check(base, "not-worn");
+  check(worn, "worn");
+  if (worn.window.count <= 0) return;
+  Vec2 mean = Vec2::Zero();
+  for (int f = worn.window.first; f < worn.window.first + worn.window.count; ++f) mean += sums.shift_px[f];
+  if (mean.allFinite()) worn.residual_shift_px -= mean / worn.window.count;
+}
 }  // namespace
 
 Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& captures,
@@ -345,15 +369,14 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
   Vec2 worn_frame_shift = Vec2::Zero();  // its content's displacement against the reference frame
   const bool split_mode = !captures.both.empty();
   if (split_mode) {
+    // The not-worn phase's own geometry changes the view at the press (and back at the removal):
+    // a registration reference per geometry (capture.hpp).
+    if (own_geometry) ro.max_references = 4;
     const CaptureSums sums = read(captures.both, "capture", &worn_series);
     const PhaseSplit split = split_phases(sums, o.window_frames);
     base_avg = average_window(sums, split.baseline, o.window_frames, o.normalise_gains);
     worn_avg = average_window(sums, split.worn, o.window_frames, o.normalise_gains);
-    if (own_geometry) {  // the worn window where its frames were, not registered to the baseline's first frame
-      Vec2 mean = Vec2::Zero();
-      for (int f = worn_avg.window.first; f < worn_avg.window.first + worn_avg.window.count; ++f) mean += sums.shift_px[f];
-      if (worn_avg.window.count > 0 && mean.allFinite()) worn_avg.residual_shift_px -= mean / worn_avg.window.count;
-    }
+    if (own_geometry) place_worn_window(sums, base_avg, worn_avg, o.max_motion_px);
     a.baseline = phase_report(sums, base_avg, o.compensate_motion);
     a.worn = phase_report(sums, worn_avg, o.compensate_motion);
     a.split = split;
@@ -491,6 +514,11 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
     if (a.split) ti.press_frame = a.split->press_frame, ti.release_frame = a.split->release_frame;
     ti.residual_shift_px = worn_avg.residual_shift_px;
     ti.inverse = &inv;
+    if (own_geometry) {
+      ti.baseline_inverse = &*base_inv;
+      ti.baseline_residual_shift_px = base_avg.residual_shift_px;
+      ti.log_transmittance_ratio = &bo.log_transmittance_ratio;
+    }
     ti.field = a.calibrated ? &a.pressure : &a.signal.y;
     ti.labels = &a.hotspot_labels;
     ti.hotspots = &a.hotspots;

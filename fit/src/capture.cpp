@@ -95,6 +95,60 @@ class FrameQueue {
   std::thread thread_;
 };
 
+/// The registration references of one read: the shared first one and, with
+/// CaptureReadOptions::max_references > 1, those taken where the view changed beyond the
+/// motion limit (a phase filmed through another geometry in the same video). A frame's motion
+/// is against its own reference (the motion across a change of geometry cannot be told from
+/// the change); the caller places each phase's window (capture.hpp).
+class References {
+ public:
+  References(MotionRegistration* first, const CaptureReadOptions& o, cv::Size image, const cv::Rect& roi)
+      : o_(o), image_(image), roi_(roi) {
+    if (first) refs_.push_back(first), last_.emplace_back();
+  }
+  MotionRegistration* current() const { return refs_.empty() ? nullptr : refs_[cur_]; }
+  int index() const { return cur_; }
+  /// Records the frame's motion against the current reference.
+  void measured(const Similarity& m) {
+    if (!refs_.empty() && m.t.allFinite()) last_[cur_] = m;
+  }
+  /// A frame beyond the motion limit against the current reference: the other references are
+  /// tried (the view back to an earlier geometry), each from the motion last measured against it,
+  /// then the frame becomes a new one. False when neither fits (the caller refuses the motion).
+  bool change(const cv::Mat& frame, const Similarity& previous, Similarity& motion, int& patches_used) {
+    if (refs_.empty() || o_.max_references <= 1) return false;
+    for (int i = 0; i < static_cast<int>(refs_.size()); ++i) {
+      if (i == cur_) continue;
+      const RegistrationResult r = refs_[i]->measure(frame, last_[i]);
+      if (r.found && r.motion.t.allFinite() && r.motion.max_displacement(roi_) <= o_.max_motion_px) {
+        cur_ = i, motion = r.motion, patches_used = r.patches_used;
+        return true;
+      }
+    }
+    if (static_cast<int>(refs_.size()) >= o_.max_references) return false;
+    owned_.push_back(std::make_unique<MotionRegistration>(image_, roi_, o_.registration,
+                                                          o_.seen.size() == roi_.size() ? o_.seen : cv::Mat()));
+    owned_.back()->set_reference(frame);
+    owned_.back()->close_reference();  // a view's own reference is its first frame (the averaged one is the shared first)
+    refs_.push_back(owned_.back().get());
+    cur_ = static_cast<int>(refs_.size()) - 1;
+    motion = Similarity{};
+    motion.centre = previous.centre;
+    last_.push_back(motion);
+    patches_used = static_cast<int>(refs_[cur_]->patches().size());
+    return true;
+  }
+
+ private:
+  const CaptureReadOptions& o_;
+  cv::Size image_;
+  cv::Rect roi_;
+  std::vector<MotionRegistration*> refs_;
+  std::vector<std::unique_ptr<MotionRegistration>> owned_;
+  std::vector<Similarity> last_;  ///< per reference: the motion last measured against it
+  int cur_ = 0;
+};
+
 /// A 16-bit frame (16-bit PNG/TIFF, 10-bit video) is kept as `deep` for the green sums and
 /// replaced by its 8-bit rounding for everything else; an 8-bit frame gives an empty Mat.
 cv::Mat deep_frame(cv::Mat& frame) {
@@ -146,7 +200,8 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
     else if (reference.registration->roi() != roi || reference.registration->image() != cv::Size(info.width, info.height))
       throw std::invalid_argument("read_capture: the motion reference was taken with another roi or image size");
   }
-  MotionRegistration* registration_of = options.register_motion ? reference.registration.get() : nullptr;
+  MotionRegistration* const first_reference = options.register_motion ? reference.registration.get() : nullptr;
+  References refs(first_reference, options, cv::Size(info.width, info.height), roi);
   const Vec2 roi_centre(roi.x + 0.5 * roi.width, roi.y + 0.5 * roi.height);
   const float* lut = srgb::to_linear_table8();
   FrameQueue queue(reader);
@@ -170,6 +225,7 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
     motion.centre = roi_centre;
     int patches_used = 0;
     tbb::task_group registration;
+    MotionRegistration* const registration_of = refs.current();
     // The first frames (registration.hpp: reference_frames) are averaged into the reference as they come.
     const bool building = registration_of && registration_of->reference_open();
     if (registration_of) {
@@ -256,8 +312,15 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
     };
     accumulate(d_prev, 1.f, true);
     registration.wait();
+    auto moved_by = [&roi](const Similarity& m) {
+      return m.t.allFinite() ? m.max_displacement(roi) : std::numeric_limits<double>::quiet_NaN();
+    };
+    double moved = moved_by(motion);
+    if ((!std::isfinite(moved) || moved > options.max_motion_px) && !sums.motion.empty() &&
+        refs.change(frame, sums.motion.back(), motion, patches_used))
+      moved = moved_by(motion);
+    refs.measured(motion);
     const Vec2 shift = motion.t;
-    const double moved = motion.t.allFinite() ? motion.max_displacement(roi) : std::numeric_limits<double>::quiet_NaN();
     if (!std::isfinite(moved) || moved > options.max_motion_px)
       throw InputError(source.string(), name,
                        "moved " + (std::isfinite(moved) ? fmt(moved, 1) + " px" : std::string("beyond recognition")) +
@@ -299,7 +362,8 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
     sums.motion.push_back(motion);
     sums.patches_used.push_back(patches_used);
     sums.applied_shift.push_back(d);
-    if (building && !registration_of->reference_open()) revise_reference_frames(*registration_of, sums);
+    sums.reference.push_back(refs.index());
+    if (building && registration_of == first_reference && !registration_of->reference_open()) revise_reference_frames(*registration_of, sums);
     sums.work_ms += ms_since(t_work);
     ++n;
     if (options.progress) options.progress(n, info.frames);
@@ -307,7 +371,8 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
   }
   if (n == 0) throw InputError(source.string(), "", "holds no frames", "check the " + role + " capture");
   // A capture shorter than the reference's frames: the reference is what it holds.
-  if (registration_of && registration_of->has_reference() && registration_of->reference_open()) revise_reference_frames(*registration_of, sums);
+  if (first_reference && first_reference->has_reference() && first_reference->reference_open())
+    revise_reference_frames(*first_reference, sums);
   sums.info.frames = n;
   return sums;
 }

@@ -519,7 +519,9 @@ CaptureSummary render_captures(const CaptureRenderer& r, const SkinParameters& s
     const double h = press_lag(tl, skin, t);
     auto t0 = std::chrono::steady_clock::now();
     const std::optional<FrameLight> light = photometry ? std::optional(photometry->frame(k)) : std::nullopt;
-    const CaptureRenderer& through = baseline && k < sum.baseline_frames ? *baseline : r;
+    // Not worn: before the press, and after the part's removal.
+    const bool worn = k >= sum.baseline_frames && k < sum.baseline_frames + sum.press_frames;
+    const CaptureRenderer& through = baseline && !worn ? *baseline : r;
     cv::Mat frame = through.render(t, h, FrameMotion(sum.shift_px[k], sum.angle_rad[k]), static_cast<std::uint64_t>(k), light ? &*light : nullptr);
     sum.render_ms += ms_since(t0);
     t0 = std::chrono::steady_clock::now();

@@ -10,6 +10,7 @@
 #include <functional>
 #include <limits>
 #include <sstream>
+#include <unordered_map>
 
 namespace clearfit {
 namespace {
@@ -256,32 +257,83 @@ TimeConstantFit fit_refill(const BinnedSeries& s, double t_r) {
 
 namespace {
 
-/// Cells of a set of texels, each weighted by its texels; the baseline green of the set.
+/// Where the series reads each texel: its cell in the worn view and in the not-worn view (the
+/// same cell when the not-worn capture has no geometry of its own), and the not-worn green there
+/// (for the worn view times the texels' mean transmittance ratio T_worn / T_baseline). Texels
+/// with the same two cells share a site.
+struct Sites {
+  std::vector<int> worn_cell, base_cell;
+  std::vector<double> g0_worn, g0_base;
+  std::vector<int> of_texel;  ///< per texel, -1 where the series does not see it
+  std::size_t size() const { return worn_cell.size(); }
+  int cell(std::size_t site, bool worn) const { return worn ? worn_cell[site] : base_cell[site]; }
+  double g0(std::size_t site, bool worn) const { return worn ? g0_worn[site] : g0_base[site]; }
+};
+
+/// The cell (of `s`) holding the texel's pixel in `inv` moved by `shift`, or -1.
+int cell_of(const TimeSeriesRecorder& s, const InverseMap& inv, const Vec2& shift, std::size_t k) {
+  if (!inv.valid[k]) return -1;
+  const double x = inv.map_x[k] + shift.x() - s.roi().x, y = inv.map_y[k] + shift.y() - s.roi().y;
+  if (!(x >= 0 && y >= 0 && x < s.roi().width && y < s.roi().height)) return -1;
+  return static_cast<int>(y) / s.cell_px() * s.cells().width + static_cast<int>(x) / s.cell_px();
+}
+
+Sites texel_sites(const TimeInputs& in, const TimeSeriesRecorder& s, const std::vector<double>& g0) {
+  const ChartGrid& grid = in.field->grid;
+  Sites out;
+  out.of_texel.assign(grid.size(), -1);
+  std::unordered_map<long long, int> site_of;
+  std::vector<double> ratio_sum;
+  std::vector<int> texels;
+  for (std::size_t k = 0; k < grid.size(); ++k) {
+    if (!std::isfinite(in.field->value[k])) continue;
+    const int cw = cell_of(s, *in.inverse, in.residual_shift_px, k);
+    const int cb = in.baseline_inverse ? cell_of(s, *in.baseline_inverse, in.baseline_residual_shift_px, k) : cw;
+    if (cw < 0 || cb < 0 || !(g0[cb] > 0)) continue;
+    const double ratio = in.log_transmittance_ratio ? std::exp(static_cast<double>((*in.log_transmittance_ratio)[k])) : 1.0;
+    if (!std::isfinite(ratio)) continue;
+    const auto [it, added] = site_of.try_emplace(static_cast<long long>(cw) * static_cast<long long>(s.cell_count()) + cb,
+                                                 static_cast<int>(out.size()));
+    if (added) {
+      out.worn_cell.push_back(cw), out.base_cell.push_back(cb), out.g0_base.push_back(g0[cb]);
+      ratio_sum.push_back(0), texels.push_back(0);
+    }
+    ratio_sum[it->second] += ratio, ++texels[it->second];
+    out.of_texel[k] = it->second;
+  }
+  for (std::size_t i = 0; i < out.size(); ++i) out.g0_worn.push_back(out.g0_base[i] * ratio_sum[i] / texels[i]);
+  return out;
+}
+
+/// Sites of a set of texels, each weighted by its texels; the not-worn green of the set in either view.
 struct Region {
-  std::vector<std::pair<int, float>> cells;
-  double g0 = 0;
+  std::vector<std::pair<int, float>> sites;
+  double g0_worn = 0, g0_base = 0;
   long long texels = 0;
 };
 
-Region make_region(std::vector<int> texel_cells, const std::vector<double>& g0) {
+Region make_region(std::vector<int> texel_sites, const Sites& sites) {
   Region r;
-  r.texels = static_cast<long long>(texel_cells.size());
-  std::sort(texel_cells.begin(), texel_cells.end());
-  for (std::size_t k = 0; k < texel_cells.size();) {
+  r.texels = static_cast<long long>(texel_sites.size());
+  std::sort(texel_sites.begin(), texel_sites.end());
+  for (std::size_t k = 0; k < texel_sites.size();) {
     std::size_t e = k;
-    while (e < texel_cells.size() && texel_cells[e] == texel_cells[k]) ++e;
-    r.cells.emplace_back(texel_cells[k], static_cast<float>(e - k));
-    r.g0 += static_cast<double>(e - k) * g0[texel_cells[k]];
+    while (e < texel_sites.size() && texel_sites[e] == texel_sites[k]) ++e;
+    const int i = texel_sites[k];
+    r.sites.emplace_back(i, static_cast<float>(e - k));
+    r.g0_worn += static_cast<double>(e - k) * sites.g0_worn[i];
+    r.g0_base += static_cast<double>(e - k) * sites.g0_base[i];
     k = e;
   }
   return r;
 }
 
-/// The region's signal in bin b: ln(ΣwG / ΣwG0) − the bin's reference.
-double region_signal(const TimeSeriesRecorder& s, int b, const Region& r, double reference) {
+/// The region's signal in bin b (seen through the worn view or not): ln(ΣwG / ΣwG0) − the bin's reference.
+double region_signal(const TimeSeriesRecorder& s, int b, const Region& r, const Sites& sites, bool worn, double reference) {
   double g = 0;
-  for (const auto& [c, w] : r.cells) g += w * s.mean(b, c);
-  return g > 0 && r.g0 > 0 ? std::log(g / r.g0) - reference : kNaN;
+  for (const auto& [i, w] : r.sites) g += w * s.mean(b, sites.cell(i, worn));
+  const double g0 = worn ? r.g0_worn : r.g0_base;
+  return g > 0 && g0 > 0 ? std::log(g / g0) - reference : kNaN;
 }
 
 /// Mean green per cell over `window` (frames) of a recorder, each bin weighted by its frames inside.
@@ -389,6 +441,10 @@ TimeAnalysis analyse_time(const TimeInputs& in, const TimeSeriesOptions& o) {
   const InverseMap& inv = *in.inverse;
   const ChartGrid& grid = in.field->grid;
   if (inv.width != grid.width || inv.height != grid.height) throw std::invalid_argument("analyse_time: inverse map and field differ");
+  if (in.baseline_inverse && (in.baseline_inverse->width != grid.width || in.baseline_inverse->height != grid.height))
+    throw std::invalid_argument("analyse_time: the baseline's inverse map and the field differ");
+  if (in.log_transmittance_ratio && in.log_transmittance_ratio->size() != grid.size())
+    throw std::invalid_argument("analyse_time: log_transmittance_ratio is not one value per texel");
   a.present = true;
   a.fps = in.fps;
   a.frames = s.frames();
@@ -400,53 +456,54 @@ TimeAnalysis analyse_time(const TimeInputs& in, const TimeSeriesOptions& o) {
   a.memory_bytes = s.bytes() + (in.baseline ? in.baseline->bytes() : 0);
   for (int b = 0; b < s.bins(); ++b) a.time_s.push_back((b * s.bin_frames() + 0.5 * (s.count(b) - 1)) / in.fps);
 
-  // Baseline green per cell; each chart texel's cell (where its pixel lies in the roi).
+  // Baseline green per cell; where the series reads each chart texel (its cells in both views).
   const std::vector<double> g0 = window_green(base, in.baseline_window);
-  std::vector<int> texel_cell(grid.size(), -1);
-  std::vector<std::uint8_t> cell_seen(s.cell_count(), 0);
-  for (std::size_t k = 0; k < grid.size(); ++k) {
-    if (!inv.valid[k] || !std::isfinite((*in.field).value[k])) continue;
-    const double x = inv.map_x[k] + in.residual_shift_px.x() - s.roi().x, y = inv.map_y[k] + in.residual_shift_px.y() - s.roi().y;
-    if (!(x >= 0 && y >= 0 && x < s.roi().width && y < s.roi().height)) continue;
-    const int c = static_cast<int>(y) / s.cell_px() * s.cells().width + static_cast<int>(x) / s.cell_px();
-    if (!(g0[c] > 0)) continue;
-    texel_cell[k] = c;
-    cell_seen[c] = 1;
-  }
-  // Per bin: the median log ratio over the seen cells (what changes all cells alike).
+  const Sites sites = texel_sites(in, s, g0);
+  // Per bin: which view its frames show (the not-worn one before the press and after the
+  // removal, when that capture has a geometry of its own and shares the series' video).
+  std::vector<char> worn_view(s.bins(), 1);
+  if (in.baseline_inverse && !in.baseline)
+    for (int b = 0; b < s.bins(); ++b) {
+      const int f = b * s.bin_frames() + s.count(b) / 2;
+      worn_view[b] = f >= in.press_frame && (in.release_frame < 0 || f < in.release_frame);
+    }
+  // Per bin: the median log ratio over the seen sites (what changes all cells alike).
   std::vector<double> reference(s.bins(), 0.0);
   std::vector<double> r;
   for (int b = 0; b < s.bins(); ++b) {
     r.clear();
-    for (std::size_t c = 0; c < cell_seen.size(); ++c)
-      if (cell_seen[c] && s.mean(b, static_cast<int>(c)) > 0) r.push_back(std::log(s.mean(b, static_cast<int>(c)) / g0[c]));
+    for (std::size_t i = 0; i < sites.size(); ++i)
+      if (const float m = s.mean(b, sites.cell(i, worn_view[b])); m > 0) r.push_back(std::log(m / sites.g0(i, worn_view[b])));
     if (r.empty()) continue;
     std::nth_element(r.begin(), r.begin() + r.size() / 2, r.end());
     reference[b] = r[r.size() / 2];
   }
+  auto series_of = [&](const Region& region) {
+    std::vector<double> y;
+    for (int b = 0; b < s.bins(); ++b) y.push_back(region_signal(s, b, region, sites, worn_view[b], reference[b]));
+    return y;
+  };
   const double half_bin = 0.5 * s.bin_frames() / in.fps;
   for (const Hotspot& spot : *in.hotspots) {
     HotspotTimeline h;
     h.hotspot = spot.id;
-    std::vector<std::vector<int>> level_cells(in.thresholds.size() + 1);
+    std::vector<std::vector<int>> level_sites(in.thresholds.size() + 1);
     for (std::size_t k = 0; k < grid.size(); ++k) {
-      if ((*in.labels)[k] != spot.id || texel_cell[k] < 0) continue;
-      level_cells[0].push_back(texel_cell[k]);
+      if ((*in.labels)[k] != spot.id || sites.of_texel[k] < 0) continue;
+      level_sites[0].push_back(sites.of_texel[k]);
       for (std::size_t i = 0; i < in.thresholds.size(); ++i)
-        if (in.field->value[k] >= in.thresholds[i]) level_cells[i + 1].push_back(texel_cell[k]);
+        if (in.field->value[k] >= in.thresholds[i]) level_sites[i + 1].push_back(sites.of_texel[k]);
     }
-    const Region place = make_region(level_cells[0], g0);
-    for (int b = 0; b < s.bins(); ++b) h.signal.push_back(region_signal(s, b, place, reference[b]));
+    h.signal = series_of(make_region(level_sites[0], sites));
     if (in.calibration) h.kpa = to_kpa(*in.calibration, h.signal);
     for (std::size_t i = 0; i < in.thresholds.size(); ++i) {
       ThresholdTime t;
       t.threshold = in.thresholds[i];
       t.signal = in.calibration ? in.calibration->signal(t.threshold) : t.threshold;
-      const Region level = make_region(level_cells[i + 1], g0);
+      const Region level = make_region(level_sites[i + 1], sites);
       t.texels = level.texels;
       std::vector<double> y;
-      if (level.texels > 0)
-        for (int b = 0; b < s.bins(); ++b) y.push_back(region_signal(s, b, level, reference[b]));
+      if (level.texels > 0) y = series_of(level);
       h.level_signal.push_back(y);
       if (level.texels > 0) time_above(a.time_s, in.calibration ? to_kpa(*in.calibration, y) : y, half_bin, t);
       h.thresholds.push_back(t);
@@ -466,17 +523,16 @@ TimeAnalysis analyse_time(const TimeInputs& in, const TimeSeriesOptions& o) {
   for (int j = 0; j < grid.height; ++j)
     for (int i = 0; i < grid.width; ++i) {
       const std::size_t k = grid.index(i, j);
-      if (texel_cell[k] < 0) continue;
+      if (sites.of_texel[k] < 0) continue;
       const Vec2 q = (grid.uv(i, j) - cg.uv_origin) / cg.texel_mm;
       const int ci = static_cast<int>(std::lround(q.x())), cj = static_cast<int>(std::lround(q.y()));
-      if (ci >= 0 && cj >= 0 && ci < cg.width && cj < cg.height) coarse[cg.index(ci, cj)].push_back(texel_cell[k]);
+      if (ci >= 0 && cj >= 0 && ci < cg.width && cj < cg.height) coarse[cg.index(ci, cj)].push_back(sites.of_texel[k]);
     }
   a.texel_signal.assign(static_cast<std::size_t>(s.bins()) * cg.size(), std::numeric_limits<float>::quiet_NaN());
   for (std::size_t t = 0; t < cg.size(); ++t) {
     if (coarse[t].empty()) continue;
-    const Region region = make_region(std::move(coarse[t]), g0);
-    for (int b = 0; b < s.bins(); ++b)
-      a.texel_signal[static_cast<std::size_t>(b) * cg.size() + t] = static_cast<float>(region_signal(s, b, region, reference[b]));
+    const std::vector<double> y = series_of(make_region(std::move(coarse[t]), sites));
+    for (int b = 0; b < s.bins(); ++b) a.texel_signal[static_cast<std::size_t>(b) * cg.size() + t] = static_cast<float>(y[b]);
   }
   if (in.calibration) {
     const std::size_t n = a.texel_signal.size();

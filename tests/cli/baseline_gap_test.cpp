@@ -151,7 +151,12 @@ TEST_F(BaselineGapCli, HandlingTheGapKeepsTheHotspotsWhereTheSingleMapDoesNot) {
   const fs::path caps = calibration().parent_path();  // held 2.0 mm
   const RunResult r = assess(caps, caps, "auto", {}, true);
   ASSERT_EQ(r.exit_code, 0) << r;
-  const RunResult old = assess(caps, caps, "single", {"--baseline-part", "touching"}, true);
+  // The single map reads the held baseline's parallax (25 px here) as motion and refuses it by
+  // default; allowed to compensate it as motion, it still misplaces the hotspots.
+  const RunResult refused = assess(caps, caps, "single_default", {"--baseline-part", "touching"}, true);
+  EXPECT_EQ(refused.exit_code, 2) << refused;
+  EXPECT_NE(refused.err.find("moved"), std::string::npos) << refused;
+  const RunResult old = assess(caps, caps, "single", {"--baseline-part", "touching", "--max-motion-px", "40"}, true);
   ASSERT_EQ(old.exit_code, 0) << old;
   const double centroid = worst_centroid_mm(report("auto"), caps), centroid_old = worst_centroid_mm(report("single"), caps);
   const double rho = vertex_pearson("auto", caps), rho_old = vertex_pearson("single", caps);

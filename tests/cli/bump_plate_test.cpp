@@ -38,12 +38,17 @@ std::string plate_scene(const Plate& p, const fs::path& mesh, const fs::path& ca
   s << "mesh: " << mesh.string() << "\nunits: mm\nior: 1.490\nmedium_ior: 1.498\nskin_ior: 1.4\ncontact: {group: contact}\n"
     << "camera: " << camera.string() << "\nmap: {normals: smooth, mode: adaptive, grid_step: 32, tolerance_um: 1.0, chart: lscm}\n"
     << "captures: {both: captures/capture.mkv, window_frames: 30}\n"
+    // The study's finger floats flat above the bump in index-matched oil (PAPER.md): the held
+    // baseline's skin model (the contact surface offset along its normals, baseline_map.hpp)
+    // wraps the bump's wall and does not describe it. Filmed and assessed touching here.
+    << "baseline: {part: touching}\n"
     << "calibration: {pressure: captures/calibration.json, person: participant-1}\n"
     << "assess: {smoothing_mm: 0.1, thresholds_kpa: [4.3, 5.5]}\n"
     << "outputs: {folder: out, texel_mm: " << p.texel_mm << "}\n"
     << "simulation:\n  seed: 3\n  out: captures\n  format: huffyuv\n  scale: " << scale << "\n"
     << "  timeline: {fps: 30, baseline_s: 2, press_s: 2.5, single_video: true}\n"
     << "  skin: {tone: light, von_mises_weight: 0.6}\n"
+    << "  baseline: {part: touching}\n"
     << "  pressure:\n    texel_mm: " << p.texel_mm << "\n    sources:\n"
     << "      - {name: bump, type: punch, center_part_mm: [0, 0, " << -p.height << "], radius_mm: " << p.radius
     << ", force_n: " << p.force_n << "}\n"

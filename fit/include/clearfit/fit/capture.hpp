@@ -38,6 +38,13 @@ struct CaptureReadOptions {
   RegistrationOptions registration;  ///< how motion is measured (registration.hpp)
   cv::Mat seen;                   ///< CV_8U, roi size: the pixels that see the skin, where registration patches go; empty: all
   double max_motion_px = 10.0;    ///< motion beyond this anywhere in the roi (against the reference) is refused
+  /// A view that changes geometry within the capture (one video whose not-worn phase was filmed
+  /// with the part held off the skin or absent, baseline_map.hpp): a frame beyond max_motion_px
+  /// is measured against the earlier references, else it becomes a new reference, up to this many;
+  /// a frame's motion is then against its own reference (CaptureSums::reference says which; the
+  /// caller checks that each phase's window keeps one, and places the windows).
+  /// 1: one reference, motion beyond the limit is refused.
+  int max_references = 1;
   int expected_width = 0, expected_height = 0;  ///< the camera's imager; 0: not checked
   std::string role;               ///< "baseline", "worn" or "capture", for messages
   /// Bounded memory: keep the chunk sums of the last this many frames only (older ones are
@@ -70,6 +77,7 @@ struct CaptureSums {
   std::vector<Similarity> motion;      ///< per frame: the whole measured motion (rotation and scale too; identity unregistered)
   std::vector<int> patches_used;       ///< per frame: registration patches kept by the robust fit (0 unregistered)
   std::vector<cv::Point> applied_shift;  ///< per frame: integer shift undone while accumulating
+  std::vector<int> reference;          ///< per frame: the registration reference it was measured against (max_references)
   std::vector<std::array<float, 64>> blocks;  ///< per frame: mean linear green of 8×8 blocks of the roi
   std::vector<float> saturated_fraction;      ///< per frame: roi pixels whose green is 255
   std::vector<float> mean_code;               ///< per frame: mean 8-bit green code over the roi

@@ -159,7 +159,8 @@ struct Timeline {
   double baseline_s = 4;  ///< not pressed
   double press_s = 3;     ///< pressed: B rises with τ_on from the first press frame
   /// After removal of the part (0: the capture ends pressed): B refills with τ_off. These
-  /// frames follow the pressed ones in the same video (the worn one, or the single one).
+  /// frames follow the pressed ones in the same video (the worn one, or the single one), seen
+  /// as the not-worn frames are (BaselineGeometry).
   double release_s = 0;
   bool single_video = false;  ///< one video holding both phases (else baseline and worn)
   int crf = 23;               ///< h264 only: libx264's constant rate factor (0 lossless … 51; phones film at about 18–28)
@@ -289,7 +290,8 @@ struct CaptureSummary {
 /// Renders the time line into `out_dir`: baseline + worn (or capture) videos.
 /// `progress(done, total)` is called after each frame (may be empty); `photometry` (optional)
 /// gives each frame's gains and glare (simulate_photometric.hpp); `baseline` (optional) renders
-/// the not-worn frames through their own map (BaselineGeometry), else `renderer` renders every frame.
+/// the not-worn frames (before the press, and after the part's removal) through their own map
+/// (BaselineGeometry), else `renderer` renders every frame.
 CaptureSummary render_captures(const CaptureRenderer& renderer, const SkinParameters& skin, const Timeline& timeline,
                                const CameraSettings& camera, VideoFormat format, const std::filesystem::path& out_dir,
                                std::uint64_t seed, const std::function<void(int, int)>& progress = {},

@@ -140,6 +140,13 @@ struct TimeInputs {
   int press_frame = 0, release_frame = -1;
   Vec2 residual_shift_px = Vec2::Zero();         ///< the worn window's (texel pixels are moved by it)
   const InverseMap* inverse = nullptr;
+  /// The not-worn capture's own geometry (baseline_map.hpp): its inverse map (the same chart grid),
+  /// its window's residual shift and per texel ln(T_worn / T_baseline). Frames of the not-worn view
+  /// (before the press, after the removal; of `baseline` when it is a file of its own) are read
+  /// through it, the others through `inverse`. Null: `inverse` serves every frame.
+  const InverseMap* baseline_inverse = nullptr;
+  Vec2 baseline_residual_shift_px = Vec2::Zero();
+  const std::vector<float>* log_transmittance_ratio = nullptr;
   const ChartField* field = nullptr;             ///< the worn field the places were found on (kPa or signal)
   const std::vector<int>* labels = nullptr;      ///< place id per texel
   const std::vector<Hotspot>* hotspots = nullptr;
