@@ -243,6 +243,10 @@ RefractionMap baseline_geometry(const AssessmentScene& scene, const PhaseAverage
                          "skin and set baseline.part: touching");
       a.warnings.push_back("the baseline's gap could not be estimated (" + e.problem + "); it hardly matters here (each mm moves the "
                            "skin seen by " + fmt(e.shift_mm_per_mm, 3) + " mm), so " + fmt(e.gap_mm, 2) + " mm is used");
+    } else if (e.sigma_mm > o.gap.warn_sigma_mm) {
+      a.warnings.push_back("the baseline's gap estimate is unsure: " + fmt(e.gap_mm, 3) + " ± " + fmt(e.sigma_mm, 3) + " mm (σ above " +
+                           fmt(o.gap.warn_sigma_mm, 2) + " mm; it moves the skin seen by ± " + fmt(e.sigma_mm * e.shift_mm_per_mm, 3) +
+                           " mm); give baseline.gap_mm if it is known");
     }
   }
   RefractionMap m = scene.baseline_rays->map(r.gap_mm);

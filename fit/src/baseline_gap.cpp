@@ -254,6 +254,8 @@ void GapSearchOptions::validate() const {
     fail("step_mm = " + std::to_string(step_mm) + ": must be positive and at most max_mm / 4");
   if (!(std::isfinite(highpass_mm) && highpass_mm > 0)) fail("highpass_mm = " + std::to_string(highpass_mm) + ": must be positive");
   if (!(std::isfinite(max_sigma_mm) && max_sigma_mm > 0)) fail("max_sigma_mm = " + std::to_string(max_sigma_mm) + ": must be positive");
+  if (!(warn_sigma_mm > 0 && warn_sigma_mm <= max_sigma_mm))
+    fail("warn_sigma_mm = " + std::to_string(warn_sigma_mm) + ": must be positive and at most max_sigma_mm");
   if (!(min_match >= 0 && min_match < 1)) fail("min_match = " + std::to_string(min_match) + ": must be in [0, 1)");
   if (bootstrap < 20) fail("bootstrap = " + std::to_string(bootstrap) + ": must be at least 20");
 }

@@ -203,5 +203,19 @@ TEST_F(BaselineGapCli, BadGapsAreRefusedWithExitTwo) {
   EXPECT_EQ(report("given")["baseline_geometry"]["gap_source"], "given");
 }
 
+TEST_F(BaselineGapCli, SkinWithoutTextureIsRefusedNamingTheCaptureAndTheKey) {
+  // No ridges, no mottling: nothing to register the not-worn capture's skin by.
+  const fs::path caps = render("flat_skin", "{part: held, gap_mm: 1.0}", false, ", ridge_amplitude: 0, mottling_amplitude: 0");
+  const RunResult r = assess(caps, caps, "flat_skin");
+  EXPECT_EQ(r.exit_code, 2) << r;
+  EXPECT_NE(r.err.find((caps / "baseline.mkv").string()), std::string::npos) << r;
+  EXPECT_NE(r.err.find("cannot be estimated"), std::string::npos) << r;
+  EXPECT_NE(r.err.find("give baseline.gap_mm"), std::string::npos) << r;
+  EXPECT_FALSE(fs::exists(work() / "flat_skin")) << "output folder left behind";
+  // Given, the same captures are assessed.
+  const RunResult given = assess(caps, caps, "flat_given", {"--baseline-gap-mm", "1"});
+  EXPECT_EQ(given.exit_code, 0) << given;
+}
+
 }  // namespace
 }  // namespace clearfit::cli_test

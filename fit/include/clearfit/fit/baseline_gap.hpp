@@ -39,6 +39,7 @@ struct GapSearchOptions {
   double step_mm = 0.25;       ///< coarse grid
   double highpass_mm = 2.5;    ///< texture: log green minus its blur of this σ, mm on the skin
   double max_sigma_mm = 0.1;   ///< a larger 1-σ: the gap cannot be estimated
+  double warn_sigma_mm = 0.05; ///< a larger 1-σ (up to max_sigma_mm): used, with a warning giving it
   double min_match = 0.1;      ///< a lower texture correlation at the estimate: cannot be estimated
   int bootstrap = 200;
   std::uint64_t seed = 1;
