@@ -151,11 +151,18 @@ TEST_F(BaselineGapCli, HandlingTheGapKeepsTheHotspotsWhereTheSingleMapDoesNot) {
   const fs::path caps = calibration().parent_path();  // held 2.0 mm
   const RunResult r = assess(caps, caps, "auto", {}, true);
   ASSERT_EQ(r.exit_code, 0) << r;
-  // The single map reads the held baseline's parallax (25 px here) as motion and refuses it by
-  // default; allowed to compensate it as motion, it still misplaces the hotspots.
-  const RunResult refused = assess(caps, caps, "single_default", {"--baseline-part", "touching"}, true);
-  EXPECT_EQ(refused.exit_code, 2) << refused;
-  EXPECT_NE(refused.err.find("moved"), std::string::npos) << refused;
+  // The single map, by default, either refuses the held baseline's parallax (25 px here) as motion or
+  // reads it as motion and misplaces the hotspots (what it does depends on how far the registration
+  // follows the parallax); allowed to compensate it as motion, it still misplaces them.
+  const RunResult by_default = assess(caps, caps, "single_default", {"--baseline-part", "touching"}, true);
+  if (by_default.exit_code == 0) {
+    const double c = worst_centroid_mm(report("single_default"), caps);
+    std::printf("single map by default: assessed, centroid error %.3f mm\n", c);
+    EXPECT_GT(c, 2 * worst_centroid_mm(report("auto"), caps) + 0.1) << "the single map is not clearly worse";
+  } else {
+    EXPECT_EQ(by_default.exit_code, 2) << by_default;
+    EXPECT_NE(by_default.err.find("moved"), std::string::npos) << by_default;
+  }
   const RunResult old = assess(caps, caps, "single", {"--baseline-part", "touching", "--max-motion-px", "40"}, true);
   ASSERT_EQ(old.exit_code, 0) << old;
   const double centroid = worst_centroid_mm(report("auto"), caps), centroid_old = worst_centroid_mm(report("single"), caps);
