@@ -252,6 +252,7 @@ Run add_bench_map(CLI::App& app) {
   struct Opts {
     std::string sizes = "640x480,1920x1080", shapes = join(bench::shape_names()),
                 modes = "exact,grid:2,grid:8,grid:32,adaptive:0.1,adaptive:1,adaptive:10", csv, plot, dump;
+    std::string chart = "auto";
     int repeat = 3;
     bool fresh_memory = false, exact_reasons = false;
   };
@@ -269,6 +270,11 @@ Run add_bench_map(CLI::App& app) {
   sub->add_option("--dump", o->dump,
                  "Write each case's map as raw arrays to DIR/SHAPE_SIZE_MODE.bin (status u8, skin_point 3 f64, face "
                  "i32, bary 2 f32, incidence, contact, transmittance f32) to compare builds");
+  sub->add_option("--chart", o->chart,
+                  "auto: grid/adaptive interpolate the contact chart's coordinates, as clearfit map does by default; "
+                  "none: they interpolate the 3D skin points (map.chart: none)")
+      ->check(CLI::IsMember({"auto", "none"}))
+      ->capture_default_str();
   sub->add_option("--repeat", o->repeat, "Timed runs per case; the best is reported")->check(CLI::Range(1, 100))->capture_default_str();
   sub->add_flag("--exact-reasons", o->exact_reasons,
                 "Grid/adaptive maps resolve boundaries between two invalid reasons too (MapOptions::exact_reasons)");
@@ -296,9 +302,9 @@ Run add_bench_map(CLI::App& app) {
     const std::size_t cases = shapes.size() * sizes.size() * modes.size();
     std::size_t done = 0;
     for (const std::string& shape : shapes) {
-      const auto scene = bench::make_scene(shape);
+      const auto scene = bench::make_scene(shape, o->chart == "auto");
       std::cerr << "bench: " << shape << ": " << scene->mesh.num_faces() << " triangles, mesh + index "
-                << static_cast<int>(scene->build_ms) << " ms\n";
+                << static_cast<int>(scene->build_ms) << " ms, chart " << static_cast<int>(scene->chart_ms) << " ms\n";
       for (const Size& size : sizes) {
         const CameraModel camera = bench::make_camera(size.w, size.h);
         const Rigid3 pose = bench::frame_part(scene->mesh, camera);
@@ -364,7 +370,7 @@ Run add_bench_map(CLI::App& app) {
         for (std::size_t k = first_row; k < rows.size(); ++k) rows[k].exact_ms = exact_ms, rows[k].exact_cpu_ms = exact_cpu_ms;
       }
     }
-    std::printf("# refraction map, best of %d runs per case (wall clock ms, all threads)%s\n"
+    std::printf("# refraction map, best of %d runs per case (wall clock ms, all threads)%s, chart %s\n"
                 "# xfloor = time / floor (2 batched ray casts per traced pixel, the second skipping the entry face);\n"
                 "#   xfl_rc = time / the floor with Embree's re-cast of refracted rays that re-find their entry face\n"
                 "# speed = exact time / time; cpu_xf, cpu_sp: the same ratios in process CPU time (all threads,\n"
@@ -374,7 +380,7 @@ Run add_bench_map(CLI::App& app) {
                 "# errors: |skin point - exact| over pixels valid in both; vdiff = pixels valid in only one;\n"
                 "#   rdiff = pixels invalid in both for different reasons (adaptive/grid: nearest node's reason where two\n"
                 "#   invalid reasons meet)\n",
-                o->repeat, o->fresh_memory ? ", fresh memory" : "");
+                o->repeat, o->fresh_memory ? ", fresh memory" : "", o->chart.c_str());
     print_table(rows);
     // Both outputs are rendered before either is written.
     const std::string csv = csv_text(rows, o->repeat);

@@ -11,6 +11,7 @@
 // refracted rays from the entry points with the entry face as skip face
 // (built outside the timer).
 #include <clearfit/camera/camera_model.hpp>
+#include <clearfit/geometry/chart.hpp>
 #include <clearfit/geometry/contact.hpp>
 #include <clearfit/geometry/ray_index.hpp>
 #include <clearfit/geometry/shapes.hpp>
@@ -23,6 +24,7 @@
 #include <ctime>
 #include <limits>
 #include <memory>
+#include <optional>
 #include <regex>
 #include <stdexcept>
 #include <string>
@@ -50,16 +52,21 @@ struct Scene {
   Mesh mesh;
   ContactSurface contact;
   std::unique_ptr<RayIndex> index;
-  double build_ms = 0;  ///< mesh + ray index
-  TraceScene trace() const { return {&mesh, &contact, index.get(), nullptr}; }
+  std::optional<Chart> chart;  ///< as `clearfit map` computes it (map.chart auto), unless asked for none
+  double build_ms = 0;         ///< mesh + ray index
+  double chart_ms = 0;
+  TraceScene trace() const { return {&mesh, &contact, index.get(), chart ? &*chart : nullptr}; }
 };
 
 /// The benchmark parts (mm), 40k-130k triangles: slab, band, dome, bumps, and
 /// the random freeform family field:SEED[:N] and shell:SEED[:N]
 /// (shapes::random_freeform with N quads per edge, default 160: 103k
 /// triangles; N = 224 gives 202k). Throws std::invalid_argument for an
-/// unknown name.
-inline std::unique_ptr<Scene> make_scene(const std::string& name) {
+/// unknown name. With `chart`, the contact surface's chart as `clearfit map`
+/// computes it by default (grid and adaptive maps then interpolate chart
+/// coordinates and put the points back on the mesh); without, they
+/// interpolate the 3D points (`map.chart: none`).
+inline std::unique_ptr<Scene> make_scene(const std::string& name, bool chart = true) {
   const auto t0 = std::chrono::steady_clock::now();
   auto s = std::make_unique<Scene>();
   s->name = name;
@@ -86,6 +93,11 @@ inline std::unique_ptr<Scene> make_scene(const std::string& name) {
   s->contact = select_contact(s->mesh, sel);
   s->index = make_ray_index(s->mesh, RayBackend::embree);
   s->build_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
+  if (chart) {
+    const auto t1 = std::chrono::steady_clock::now();
+    s->chart = compute_chart(s->mesh, s->contact);
+    s->chart_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t1).count();
+  }
   return s;
 }
 

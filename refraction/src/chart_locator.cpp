@@ -31,28 +31,36 @@ ChartLocator::ChartLocator(const Mesh& mesh, const Chart& chart) : mesh_(mesh), 
   for (const auto& e : entries) faces_[fill[e.first]++] = e.second;
 }
 
+std::optional<ChartHit> ChartLocator::in_face(const Vec2& uv, int f) const {
+  const auto& t = mesh_.faces[f];
+  const Vec2 a = chart_.uv[t[0]], e1 = chart_.uv[t[1]] - a, e2 = chart_.uv[t[2]] - a, r = uv - a;
+  const double det = e1.x() * e2.y() - e1.y() * e2.x();
+  if (det == 0) return std::nullopt;
+  const double b1 = (r.x() * e2.y() - r.y() * e2.x()) / det, b2 = (e1.x() * r.y() - e1.y() * r.x()) / det;
+  const double b0 = 1 - b1 - b2, tol = -1e-9;
+  if (b0 < tol || b1 < tol || b2 < tol) return std::nullopt;
+  ChartHit h;
+  h.face = f;
+  h.bary = {b0, b1, b2};
+  h.point = b0 * mesh_.corner(f, 0) + b1 * mesh_.corner(f, 1) + b2 * mesh_.corner(f, 2);
+  return h;
+}
+
 std::optional<ChartHit> ChartLocator::locate(const Vec2& uv) const {
   if (nx_ == 0 || !uv.allFinite()) return std::nullopt;
   const int x = static_cast<int>(std::floor((uv.x() - lo_.x()) / cell_));
   const int y = static_cast<int>(std::floor((uv.y() - lo_.y()) / cell_));
   if (x < 0 || y < 0 || x >= nx_ || y >= ny_) return std::nullopt;
   const int c = y * nx_ + x;
-  for (int i = start_[c]; i < start_[c + 1]; ++i) {
-    const int f = faces_[i];
-    const auto& t = mesh_.faces[f];
-    const Vec2 a = chart_.uv[t[0]], e1 = chart_.uv[t[1]] - a, e2 = chart_.uv[t[2]] - a, r = uv - a;
-    const double det = e1.x() * e2.y() - e1.y() * e2.x();
-    if (det == 0) continue;
-    const double b1 = (r.x() * e2.y() - r.y() * e2.x()) / det, b2 = (e1.x() * r.y() - e1.y() * r.x()) / det;
-    const double b0 = 1 - b1 - b2, tol = -1e-9;
-    if (b0 < tol || b1 < tol || b2 < tol) continue;
-    ChartHit h;
-    h.face = f;
-    h.bary = {b0, b1, b2};
-    h.point = b0 * mesh_.corner(f, 0) + b1 * mesh_.corner(f, 1) + b2 * mesh_.corner(f, 2);
-    return h;
-  }
+  for (int i = start_[c]; i < start_[c + 1]; ++i)
+    if (auto h = in_face(uv, faces_[i])) return h;
   return std::nullopt;
+}
+
+std::optional<ChartHit> ChartLocator::locate(const Vec2& uv, int hint) const {
+  if (hint >= 0 && uv.allFinite())
+    if (auto h = in_face(uv, hint)) return h;
+  return locate(uv);
 }
 
 }  // namespace clearfit::refraction_detail

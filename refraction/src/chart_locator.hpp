@@ -20,8 +20,12 @@ class ChartLocator {
   ChartLocator(const Mesh& mesh, const Chart& chart);
   /// The charted face containing `uv` (barycentrics within [-1e-9, 1]), or nullopt.
   std::optional<ChartHit> locate(const Vec2& uv) const;
+  /// The same, trying face `hint` first (the previous pixel's face: along a
+  /// row most pixels fall in the face of the one before).
+  std::optional<ChartHit> locate(const Vec2& uv, int hint) const;
 
  private:
+  std::optional<ChartHit> in_face(const Vec2& uv, int f) const;
   const Mesh& mesh_;
   const Chart& chart_;
   Vec2 lo_ = Vec2::Zero();

@@ -16,9 +16,9 @@ void refine_quadtree(const MapRun& run) { Quadtree(run).run(); }
 Quadtree::Quadtree(const MapRun& run)
     : run_(run), mesh_(*run.scene.mesh), map_(run.map), st_(run.map.stats), box_(run.box), W_(run.map.width),
       adaptive_(run.options.mode == MapOptions::Mode::adaptive), tol_mm_(run.options.tolerance_um * 1e-3),
+      accept_mm_(kAcceptFraction * tol_mm_),
       component_(run.scene.contact->component),
-      traced_(static_cast<std::size_t>(run.map.width) * run.map.height, kUntouched),
-      accept_mm_(kAcceptFraction * tol_mm_) {}
+      traced_(static_cast<std::size_t>(run.map.width) * run.map.height, kUntouched) {}
 
 void Quadtree::trace_pixels(const std::vector<std::uint32_t>& pixels_in) {
   // Distinct untraced pixels, in the callers' order (cell by cell: nearby
@@ -49,15 +49,22 @@ void Quadtree::trace_pixels(const std::vector<std::uint32_t>& pixels_in) {
   st_.traced += static_cast<long long>(pixels.size());
 }
 
-// The check pixels, at a quarter and three quarters of the cell's diagonals.
+// The check pixels, at a quarter and three quarters of the cell's diagonals,
+// moved off the node rows and columns where a side is too short for that (a
+// cell 3 px tall at the bound's edge has nodes at 0, 1, 3: its checks go to
+// row 2, else they would sit on node rows and see nothing between them).
 std::pair<int, int> Quadtree::check_xy(const Cell& c, int k) {
-  const int dx = (c.x1 - c.x0) / 4, dy = (c.y1 - c.y0) / 4;
-  switch (k) {
-    case 0: return {c.x0 + dx, c.y0 + dy};
-    case 1: return {c.x1 - dx, c.y1 - dy};
-    case 2: return {c.x1 - dx, c.y0 + dy};
-    default: return {c.x0 + dx, c.y1 - dy};
-  }
+  auto at = [](int a0, int a1, bool high) {
+    const int m = (a0 + a1) / 2, d = (a1 - a0) / 4;
+    auto node = [&](int v) { return v == a0 || v == m || v == a1; };
+    const int v = high ? a1 - d : a0 + d;
+    if (node(v))
+      for (int u = high ? a1 - 1 : a0 + 1; u > a0 && u < a1; u += high ? -1 : 1)
+        if (!node(u)) return u;
+    return v;
+  };
+  const bool hx = k == 1 || k == 2, hy = k == 1 || k == 3;
+  return {at(c.x0, c.x1, hx), at(c.y0, c.y1, hy)};
 }
 
 // A split cell's children have the parent's nodes as corners: a child whose
@@ -164,9 +171,11 @@ void Quadtree::decide(const std::vector<Cell>& cells, std::vector<char>& decisio
       }
       cell_err[ci] = err;
       // adaptive: the checks of a cell whose parent had no estimate (some of
-      // its nodes or checks invalid: a boundary or a discontinuity nearby)
+      // its nodes or checks invalid: a boundary or a discontinuity nearby),
+      // or an error that no smooth map leaves after one split (a jump between
+      // two valid branches, a fold, that the child's checks may straddle),
       // are not trusted alone.
-      const bool estimated = c.parent_err != kUnknownErr;
+      const bool estimated = c.parent_err != kUnknownErr && c.parent_err <= kTrustedParent * tol_mm_;
       if (err < 1e300 && (!adaptive_ || (err <= accept_mm_ && estimated))) decision[ci] = accept_valid;
     } else if (same_invalid && checks_first) {
       decision[ci] = accept_invalid;  // uniformly invalid for the same reason

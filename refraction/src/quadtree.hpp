@@ -36,9 +36,20 @@ constexpr int kChecks = 4;
 // tolerance: the map is only piecewise smooth (kinks along the images of mesh
 // edges, where interpolated normals and facets meet), so the error between the
 // checks reaches about twice theirs. Measured on the random freeform family
-// (tests/refraction/map_tolerance_test.cpp, `clearfit bench map`): at 1 keeps
-// the p99 near 0.8-1.9 µm at 1 µm, at 1/2 below 1 µm.
+// (30k triangles, 320x240 and 640x480; tests/refraction/map_tolerance_test.cpp)
+// at 1 µm: with a chart the p99 stays at 0.35-0.91 µm and the max at
+// 0.56-2.03 µm. Without one the interpolated points lie on a smooth surface
+// through the nodes, off the flat facets the exact points lie on by up to
+// the facets' sag (|dn|·edge/8, about 1 µm on these parts), which the checks
+// do not bound: p99 up to 1.23 µm, max up to 2.3 µm (a quarter of the
+// tolerance did not bound it either, at twice the traces).
 constexpr double kAcceptFraction = 0.5;
+// adaptive trusts a cell's checks only when its parent's error was at most
+// this many tolerances: a smooth map's interpolation error falls 2-8x per
+// split (linear beside kinks, cubic elsewhere), so a parent far above it has a
+// jump or a fold between two valid branches inside (seen: 1.3 mm on a random
+// shell, seed 58, whose child's checks all missed it).
+constexpr double kTrustedParent = 16;
 // Cells up to this size (pixels) that a validity boundary crosses go to the
 // boundary resolver instead of being split further.
 constexpr int kResolveCell = 8;
@@ -102,9 +113,9 @@ class Quadtree {
   /// With a chart, chart coordinates are interpolated (smooth: no surface
   /// sag) and put back on the mesh by point location, so the point lies on
   /// the surface. Without one: the skin points themselves, with the face of
-  /// the heaviest node. nullopt: the location fell outside the chart.
-  std::optional<Interp> interpolate(const Nodes& q, const std::array<double, 9>& w) const;
-  void write_interp(std::uint32_t p, const Nodes& q, const std::array<double, 9>& w, const Interp& r);
+  /// the heaviest node. nullopt: the location fell outside the chart. `hint`:
+  /// a face to try first (the previous pixel's).
+  std::optional<Interp> interpolate(const Nodes& q, const std::array<double, 9>& w, int hint = -1) const;
   long long fill_located(const Cell& c, const Nodes& q);
   void prepare_direct(const Cell& c, DirectFill& f) const;
   long long fill_direct_row(const DirectFill& f, int y);

@@ -54,14 +54,14 @@ std::array<double, 9> Quadtree::weights(const Nodes& q, int x, int y) {
   return w;
 }
 
-std::optional<Quadtree::Interp> Quadtree::interpolate(const Nodes& q, const std::array<double, 9>& w) const {
+std::optional<Quadtree::Interp> Quadtree::interpolate(const Nodes& q, const std::array<double, 9>& w, int hint) const {
   int heaviest = 0;
   for (int k = 0; k < q.n; ++k)
     if (w[k] > w[heaviest]) heaviest = k;
   if (locator_) {
     Vec2 uv = Vec2::Zero();
     for (int k = 0; k < q.n; ++k) uv += w[k] * map_.chart_uv[q.pixel[k]].cast<double>();
-    const auto hit = locator_->locate(uv);
+    const auto hit = locator_->locate(uv, hint);
     if (!hit) return std::nullopt;
     return Interp{hit->point, hit->face, hit->bary, uv};
   }
@@ -71,45 +71,60 @@ std::optional<Quadtree::Interp> Quadtree::interpolate(const Nodes& q, const std:
   return r;
 }
 
-// Writes the interpolated fields of pixel p (weights w of the nodes).
-void Quadtree::write_interp(std::uint32_t p, const Nodes& q, const std::array<double, 9>& w, const Interp& r) {
-  map_.status[p] = PixelStatus::valid;
-  map_.skin_point[p] = r.point;
-  map_.face[p] = r.face;
-  map_.bary[p] = Eigen::Vector2f(static_cast<float>(r.bary[1]), static_cast<float>(r.bary[2]));
-  map_.chart_uv[p] = r.uv.cast<float>();
-  float inc = 0, con = 0, T = 0;
-  for (int k = 0; k < q.n; ++k) {
-    const float wk = static_cast<float>(w[k]);
-    inc += wk * map_.incidence_deg[q.pixel[k]];
-    con += wk * map_.contact_deg[q.pixel[k]];
-    T += wk * map_.transmittance[q.pixel[k]];
-  }
-  map_.incidence_deg[p] = inc;
-  map_.contact_deg[p] = con;
-  map_.transmittance[p] = std::clamp(T, 0.0f, 1.0f);
-}
-
 // Fills the untraced pixels of an accepted cell through the chart (point
-// location per pixel); pixels the location misses are marked for an exact
-// trace (kRelocate). Returns the pixels filled.
+// location per pixel, the previous pixel's face tried first); pixels the
+// location misses are marked for an exact trace (kRelocate). Along a row the
+// interpolant is a polynomial of degree nx - 1 <= 2 in x: chart coordinates
+// and the angles by forward differences, as in fill_direct_row. Returns the
+// pixels filled.
 long long Quadtree::fill_located(const Cell& c, const Nodes& q) {
+  using Val = Eigen::Matrix<double, 5, 1>;  // chart u, v, incidence, contact, transmittance
+  std::array<Val, 9> node;
+  for (int k = 0; k < q.n; ++k) {
+    const std::uint32_t n = q.pixel[k];
+    node[k] << map_.chart_uv[n].cast<double>(), map_.incidence_deg[n], map_.contact_deg[n], map_.transmittance[n];
+  }
+  double wx0[3][3];
+  for (int k = 0; k < 3; ++k) lagrange(q.ax, q.nx, c.x0 + k, wx0[k]);
   long long count = 0;
   const int xe = x_end(c), ye = y_end(c);
-  for (int y = c.y0; y <= ye; ++y)
-    for (int x = c.x0; x <= xe; ++x) {
+  for (int y = c.y0; y <= ye; ++y) {
+    double wy[3];
+    lagrange(q.ay, q.ny, y, wy);
+    Val row[3], v[3];
+    for (int i = 0; i < q.nx; ++i) {
+      row[i].setZero();
+      for (int j = 0; j < q.ny; ++j) row[i] += wy[j] * node[j * q.nx + i];
+    }
+    for (int k = 0; k < 3; ++k) {
+      v[k].setZero();
+      for (int i = 0; i < q.nx; ++i) v[k] += wx0[k][i] * row[i];
+    }
+    Val value = v[0], d1 = v[1] - v[0];
+    const Val d2 = v[2] - 2 * v[1] + v[0];
+    int hint = -1;
+    for (int x = c.x0; x <= xe; ++x, value += d1, d1 += d2) {
       const std::uint32_t p = idx(x, y);
       if (traced_[p]) continue;
-      const auto w = weights(q, x, y);
-      const auto r = interpolate(q, w);
-      if (!r) {
+      const Vec2 uv = value.head<2>();
+      const auto hit = locator_->locate(uv, hint);
+      if (!hit) {
         traced_[p] = kRelocate;
         continue;
       }
+      hint = hit->face;
       traced_[p] = kFilled;
-      write_interp(p, q, w, *r);
+      map_.status[p] = PixelStatus::valid;
+      map_.skin_point[p] = hit->point;
+      map_.face[p] = hit->face;
+      map_.bary[p] = Eigen::Vector2f(static_cast<float>(hit->bary[1]), static_cast<float>(hit->bary[2]));
+      map_.chart_uv[p] = uv.cast<float>();
+      map_.incidence_deg[p] = static_cast<float>(value[2]);
+      map_.contact_deg[p] = static_cast<float>(value[3]);
+      map_.transmittance[p] = std::clamp(static_cast<float>(value[4]), 0.0f, 1.0f);
       ++count;
     }
+  }
   return count;
 }
 
