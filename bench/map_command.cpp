@@ -261,7 +261,7 @@ Run add_bench_map(CLI::App& app) {
       "map", "Refraction map modes on the analytic parts: time, error against the exact trace, ratio to the ray-cast floor");
   sub->add_option("--sizes", o->sizes, "Image sizes WxH, comma separated (3840x2160 needs ~4 GB)")->capture_default_str();
   sub->add_option("--shapes", o->shapes,
-                  "Parts: slab, band, dome, bumps, and the random freeform parts field:SEED[:N], shell:SEED[:N] "
+                  "Parts: slab, band, dome, cap, bumps, and the random freeform parts field:SEED[:N], shell:SEED[:N] "
                   "(N quads per edge, default 160: 103k triangles; 224: 202k)")
       ->capture_default_str();
   sub->add_option("--modes", o->modes, "exact, grid:STEP, adaptive:TOLERANCE_UM")->capture_default_str();
@@ -289,7 +289,7 @@ Run add_bench_map(CLI::App& app) {
     for (const std::string& s : shapes)
       if (!bench::known_shape(s))
         throw InputError("", "--shapes '" + s + "'", "is not a benchmark part",
-                         "slab, band, dome, bumps, field:SEED[:N], shell:SEED[:N]");
+                         "slab, band, dome, cap, bumps, field:SEED[:N], shell:SEED[:N]");
     if (shapes.empty()) throw InputError("", "--shapes", "is empty", "e.g. band,dome");
     if (!o->plot.empty() && std::filesystem::path(o->plot).extension() != ".png")
       throw InputError(o->plot, "--plot", "must name a .png file", "e.g. --plot bench.png");

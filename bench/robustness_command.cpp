@@ -9,6 +9,8 @@
 // It runs the clearfit program (simulate, calibrate-pressure, assess) beside
 // this one; the table goes to stdout, robustness.csv and robustness.json.
 #include <clearfit/atomic_file.hpp>
+#include "map_scenes.hpp"
+
 #include <clearfit/cli/commands.hpp>
 #include <clearfit/error.hpp>
 #include <clearfit/geometry/import.hpp>
@@ -275,7 +277,7 @@ Run add_bench_robustness(CLI::App& app) {
     const fs::path wrist = fs::path(*samples) / "wristband";
     // The shell: a spherical cap (inner radius 30 mm, as the wristband's, 2.5 mm thick, 30° half-angle) under the wristband's camera.
     const fs::path shell = st->out / "shell.obj";
-    save_mesh(shapes::spherical_shell(30, 32.5, 30, 48, 192), shell);
+    save_mesh(bench::cap_shell(), shell);
     std::vector<Row> rows;
     std::vector<Part> parts{{"wristband", wrist / "wristband.obj", wrist / "camera.cameramodel"}};
     if (!st->quick) parts.push_back({"shell", shell, wrist / "camera.cameramodel"});

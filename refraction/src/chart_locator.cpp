@@ -1,6 +1,7 @@
 #include "chart_locator.hpp"
 
 #include <cmath>
+#include <limits>
 
 namespace clearfit::refraction_detail {
 
@@ -14,6 +15,14 @@ ChartLocator::ChartLocator(const Mesh& mesh, const Chart& chart) : mesh_(mesh), 
   cell_ = std::max(std::sqrt(area / static_cast<double>(chart.faces.size())), 1e-12);
   nx_ = std::max(1, static_cast<int>(std::ceil((hi.x() - lo_.x()) / cell_)) + 1);
   ny_ = std::max(1, static_cast<int>(std::ceil((hi.y() - lo_.y()) / cell_)) + 1);
+  const double nan = std::numeric_limits<double>::quiet_NaN();
+  affine_.assign(mesh.faces.size(), Affine{Vec2::Constant(nan), {nan, nan, nan, nan}});
+  for (int f : chart.faces) {
+    const auto& t = mesh.faces[f];
+    const Vec2 a = chart.uv[t[0]], e1 = chart.uv[t[1]] - a, e2 = chart.uv[t[2]] - a;
+    const double det = e1.x() * e2.y() - e1.y() * e2.x();
+    if (det != 0) affine_[f] = Affine{a, {e2.y() / det, -e2.x() / det, -e1.y() / det, e1.x() / det}};
+  }
   std::vector<std::pair<int, int>> entries;  // (cell, face)
   for (int f : chart.faces) {
     Vec2 a = chart.uv[mesh.faces[f][0]], b = a;
@@ -32,13 +41,11 @@ ChartLocator::ChartLocator(const Mesh& mesh, const Chart& chart) : mesh_(mesh), 
 }
 
 std::optional<ChartHit> ChartLocator::in_face(const Vec2& uv, int f) const {
-  const auto& t = mesh_.faces[f];
-  const Vec2 a = chart_.uv[t[0]], e1 = chart_.uv[t[1]] - a, e2 = chart_.uv[t[2]] - a, r = uv - a;
-  const double det = e1.x() * e2.y() - e1.y() * e2.x();
-  if (det == 0) return std::nullopt;
-  const double b1 = (r.x() * e2.y() - r.y() * e2.x()) / det, b2 = (e1.x() * r.y() - e1.y() * r.x()) / det;
+  const Affine& A = affine_[f];
+  const Vec2 r = uv - A.a;
+  const double b1 = A.m[0] * r.x() + A.m[1] * r.y(), b2 = A.m[2] * r.x() + A.m[3] * r.y();
   const double b0 = 1 - b1 - b2, tol = -1e-9;
-  if (b0 < tol || b1 < tol || b2 < tol) return std::nullopt;
+  if (!(b0 >= tol && b1 >= tol && b2 >= tol)) return std::nullopt;  // also a face without an affine (NaN)
   ChartHit h;
   h.face = f;
   h.bary = {b0, b1, b2};

@@ -32,6 +32,13 @@ class ChartLocator {
   double cell_ = 1;
   int nx_ = 0, ny_ = 0;
   std::vector<int> start_, faces_;  // CSR: faces overlapping each cell
+  // Per mesh face (charted ones set): chart corner 0 and the inverse of the
+  // 2x2 matrix of its edges, row-major; barycentrics 1, 2 = inverse · (uv - corner 0).
+  struct Affine {
+    Vec2 a;
+    double m[4];
+  };
+  std::vector<Affine> affine_;
 };
 
 }  // namespace clearfit::refraction_detail

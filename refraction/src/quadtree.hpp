@@ -4,9 +4,10 @@
 // interior is filled by tensor-product quadratic (Lagrange) interpolation of
 // the nodes. Four check pixels (the quadrants' centres) are traced too;
 // adaptive splits the cell into its quadrants (whose corners are nodes
-// already) unless the interpolation is within tolerance at all four and the
-// parent's checks were all valid (a cell beside a boundary or a
-// discontinuity is not accepted on its own checks alone). Each level's
+// already) unless the interpolation is within half the tolerance at all four
+// and the parent's nodes and checks were all valid with an error of at most
+// kTrustedParent tolerances (a cell beside a boundary, a discontinuity or a
+// fold is not accepted on its own checks alone). Each level's
 // nodes and checks are traced in one batch. Small cells that a validity
 // boundary crosses go to the boundary resolver instead of being split.
 //
@@ -83,10 +84,9 @@ class Quadtree {
     std::uint32_t pixel[9];
     int ax[3], ay[3], nx = 0, ny = 0;
   };
-  // A cell prepared for the fill without a chart, written row by row across
-  // all cells of a level (long runs along the rows write at about twice the
-  // memory bandwidth of cell by cell). Gives interpolate()'s result up to
-  // rounding.
+  // A cell prepared for the fill, written row by row across all cells of a
+  // level (long runs along the rows write at about twice the memory bandwidth
+  // of cell by cell). Gives interpolate()'s result up to rounding.
   struct DirectFill {
     // Per node's face: corner 0 and the two vectors whose dot products
     // with (point - corner 0) give the barycentric weights of corners 1, 2.
@@ -94,7 +94,8 @@ class Quadtree {
       Vec3 a, g1, g2;
       int face;
     };
-    using Val = Eigen::Matrix<double, 6, 1>;  // skin point, incidence, contact, transmittance
+    // skin point (with a chart: chart u, v, 0), incidence, contact, transmittance
+    using Val = Eigen::Matrix<double, 6, 1>;
     Nodes q;
     int x0, y0, xe, ye;
     std::array<Frame, 9> frame;
@@ -116,7 +117,6 @@ class Quadtree {
   /// the heaviest node. nullopt: the location fell outside the chart. `hint`:
   /// a face to try first (the previous pixel's).
   std::optional<Interp> interpolate(const Nodes& q, const std::array<double, 9>& w, int hint = -1) const;
-  long long fill_located(const Cell& c, const Nodes& q);
   void prepare_direct(const Cell& c, DirectFill& f) const;
   long long fill_direct_row(const DirectFill& f, int y);
   void fill_invalid_row(int x0, int xe, int y, PixelStatus why);

@@ -71,63 +71,6 @@ std::optional<Quadtree::Interp> Quadtree::interpolate(const Nodes& q, const std:
   return r;
 }
 
-// Fills the untraced pixels of an accepted cell through the chart (point
-// location per pixel, the previous pixel's face tried first); pixels the
-// location misses are marked for an exact trace (kRelocate). Along a row the
-// interpolant is a polynomial of degree nx - 1 <= 2 in x: chart coordinates
-// and the angles by forward differences, as in fill_direct_row. Returns the
-// pixels filled.
-long long Quadtree::fill_located(const Cell& c, const Nodes& q) {
-  using Val = Eigen::Matrix<double, 5, 1>;  // chart u, v, incidence, contact, transmittance
-  std::array<Val, 9> node;
-  for (int k = 0; k < q.n; ++k) {
-    const std::uint32_t n = q.pixel[k];
-    node[k] << map_.chart_uv[n].cast<double>(), map_.incidence_deg[n], map_.contact_deg[n], map_.transmittance[n];
-  }
-  double wx0[3][3];
-  for (int k = 0; k < 3; ++k) lagrange(q.ax, q.nx, c.x0 + k, wx0[k]);
-  long long count = 0;
-  const int xe = x_end(c), ye = y_end(c);
-  for (int y = c.y0; y <= ye; ++y) {
-    double wy[3];
-    lagrange(q.ay, q.ny, y, wy);
-    Val row[3], v[3];
-    for (int i = 0; i < q.nx; ++i) {
-      row[i].setZero();
-      for (int j = 0; j < q.ny; ++j) row[i] += wy[j] * node[j * q.nx + i];
-    }
-    for (int k = 0; k < 3; ++k) {
-      v[k].setZero();
-      for (int i = 0; i < q.nx; ++i) v[k] += wx0[k][i] * row[i];
-    }
-    Val value = v[0], d1 = v[1] - v[0];
-    const Val d2 = v[2] - 2 * v[1] + v[0];
-    int hint = -1;
-    for (int x = c.x0; x <= xe; ++x, value += d1, d1 += d2) {
-      const std::uint32_t p = idx(x, y);
-      if (traced_[p]) continue;
-      const Vec2 uv = value.head<2>();
-      const auto hit = locator_->locate(uv, hint);
-      if (!hit) {
-        traced_[p] = kRelocate;
-        continue;
-      }
-      hint = hit->face;
-      traced_[p] = kFilled;
-      map_.status[p] = PixelStatus::valid;
-      map_.skin_point[p] = hit->point;
-      map_.face[p] = hit->face;
-      map_.bary[p] = Eigen::Vector2f(static_cast<float>(hit->bary[1]), static_cast<float>(hit->bary[2]));
-      map_.chart_uv[p] = uv.cast<float>();
-      map_.incidence_deg[p] = static_cast<float>(value[2]);
-      map_.contact_deg[p] = static_cast<float>(value[3]);
-      map_.transmittance[p] = std::clamp(static_cast<float>(value[4]), 0.0f, 1.0f);
-      ++count;
-    }
-  }
-  return count;
-}
-
 void Quadtree::prepare_direct(const Cell& c, DirectFill& f) const {
   f.q = nodes_of(c);
   const Nodes& q = f.q;
@@ -143,7 +86,10 @@ void Quadtree::prepare_direct(const Cell& c, DirectFill& f) const {
     const double inv = det > 0 ? 1 / det : 0;
     fr.g1 = (d22 * e1 - d12 * e2) * inv;
     fr.g2 = (d11 * e2 - d12 * e1) * inv;
-    f.node_val[k] << map_.skin_point[n], map_.incidence_deg[n], map_.contact_deg[n], map_.transmittance[n];
+    if (locator_)  // chart coordinates in place of the point
+      f.node_val[k] << map_.chart_uv[n].cast<double>(), 0.0, map_.incidence_deg[n], map_.contact_deg[n], map_.transmittance[n];
+    else
+      f.node_val[k] << map_.skin_point[n], map_.incidence_deg[n], map_.contact_deg[n], map_.transmittance[n];
   }
   for (int k = 0; k < 3; ++k) lagrange(q.ax, q.nx, f.x0 + k, f.wx0[k]);
   f.ix_n = 0;
@@ -182,6 +128,31 @@ long long Quadtree::fill_direct_row(const DirectFill& f, int y) {
   const std::uint32_t row_start = idx(f.x0, y);
   long long count = 0;
   const int n = f.xe - f.x0 + 1;
+  if (locator_) {  // chart coordinates located on the mesh, the previous pixel's face tried first
+    int hint = -1;
+    for (int xi = 0; xi < n; ++xi, value += d1, d1 += d2) {
+      const std::uint32_t p = row_start + static_cast<std::uint32_t>(xi);
+      if (traced_[p]) continue;
+      const Vec2 uv = value.head<2>();
+      const auto hit = locator_->locate(uv, hint);
+      if (!hit) {
+        traced_[p] = kRelocate;
+        continue;
+      }
+      hint = hit->face;
+      traced_[p] = kFilled;
+      map_.status[p] = PixelStatus::valid;
+      map_.skin_point[p] = hit->point;
+      map_.face[p] = hit->face;
+      map_.bary[p] = Eigen::Vector2f(static_cast<float>(hit->bary[1]), static_cast<float>(hit->bary[2]));
+      map_.chart_uv[p] = uv.cast<float>();
+      map_.incidence_deg[p] = static_cast<float>(value[3]);
+      map_.contact_deg[p] = static_cast<float>(value[4]);
+      map_.transmittance[p] = std::clamp(static_cast<float>(value[5]), 0.0f, 1.0f);
+      ++count;
+    }
+    return count;
+  }
   for (int seg = 0; seg < f.ix_n; ++seg) {
     const DirectFill::Frame& fr = f.frame[jy * q.nx + f.ix_of[seg]];
     const int xi_end = seg + 1 < f.ix_n ? f.ix_from[seg + 1] : n;
