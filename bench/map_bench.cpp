@@ -1,7 +1,8 @@
-// Refraction map: exact against adaptive (1 µm) on the wristband at 640x480
-// and 1920x1080, with counters for the error against the exact trace (p99,
-// max, µm), the ratio to the floor (two batched ray casts per traced pixel,
-// measured at set-up) and the share of pixels traced. The full sweep is
+// Refraction map: exact against adaptive (1 µm) on the wristband and on a
+// random freeform shell (shell:6, not tuned on) at 640x480 and 1920x1080,
+// with counters for the error against the exact trace (p99, max, µm), the
+// ratio to the floor (two batched ray casts per traced pixel, measured at
+// set-up) and the share of pixels traced. The full sweep is
 // `clearfit bench map`; scenes and the floor come from map_scenes.hpp.
 //   map_bench --benchmark_filter=1920
 #include "map_scenes.hpp"
@@ -15,6 +16,7 @@ namespace clearfit::bench {
 namespace {
 
 constexpr int kSizes[][2] = {{640, 480}, {1920, 1080}};
+const char* const kShapes[] = {"band", "shell:6"};
 
 struct Setup {
   std::unique_ptr<Scene> scene;
@@ -24,12 +26,12 @@ struct Setup {
   Floor floor;
 };
 
-const Setup& setup(int size) {
-  static std::map<int, Setup> cache;
-  auto [it, inserted] = cache.try_emplace(size);
+const Setup& setup(int shape, int size) {
+  static std::map<std::pair<int, int>, Setup> cache;
+  auto [it, inserted] = cache.try_emplace(std::pair(shape, size));
   Setup& s = it->second;
   if (inserted) {
-    s.scene = make_scene("band");
+    s.scene = make_scene(kShapes[shape]);
     s.camera = make_camera(kSizes[size][0], kSizes[size][1]);
     s.pose = frame_part(s.scene->mesh, s.camera);
     s.exact = compute_refraction_map(s.scene->trace(), s.camera, s.pose);
@@ -39,7 +41,7 @@ const Setup& setup(int size) {
 }
 
 void Map(benchmark::State& state) {
-  const Setup& s = setup(static_cast<int>(state.range(0)));
+  const Setup& s = setup(static_cast<int>(state.range(2)), static_cast<int>(state.range(0)));
   MapOptions opt;
   const bool adaptive = state.range(1) == 1;
   if (adaptive) opt.mode = MapOptions::Mode::adaptive, opt.tolerance_um = 1.0;
@@ -58,12 +60,12 @@ void Map(benchmark::State& state) {
   state.counters["max_um"] = e.max_um;
   state.counters["vdiff"] = static_cast<double>(e.validity_diff);
   state.counters["traced%"] = 100.0 * static_cast<double>(map.stats.traced) / static_cast<double>(map.stats.pixels);
-  state.SetLabel(std::string("band ") + std::to_string(kSizes[state.range(0)][0]) + "x" +
+  state.SetLabel(std::string(kShapes[state.range(2)]) + " " + std::to_string(kSizes[state.range(0)][0]) + "x" +
                  std::to_string(kSizes[state.range(0)][1]) + (adaptive ? " adaptive:1" : " exact"));
 }
 BENCHMARK(Map)
-    ->ArgsProduct({{0, 1}, {0, 1}})
-    ->ArgNames({"size", "adaptive"})
+    ->ArgsProduct({{0, 1}, {0, 1}, {0, 1}})
+    ->ArgNames({"size", "adaptive", "shape"})
     ->Unit(benchmark::kMillisecond)
     ->UseRealTime()
     ->MinTime(1.0);
