@@ -55,6 +55,7 @@ std::unique_ptr<Prepared> prepare(AssessOpts& o) {
   ao.window_frames = cap.window_frames;
   ao.compensate_motion = cap.motion_compensation;
   ao.max_motion_px = cap.max_motion_px;
+  ao.max_sums_mb = cap.max_mb;
   const AssessSection& as = sc.assess;
   ao.blanching.smoothing_mm = as.smoothing_mm;
   if (!as.reference_uv_mm.empty()) ao.blanching.reference_uv_mm = Vec2(as.reference_uv_mm[0], as.reference_uv_mm[1]);

@@ -218,11 +218,13 @@ void CapturesSection::bind(SceneFields& f) {
   f.key("window_frames", window_frames, "--window-frames", "Frames averaged per phase");
   f.key("max_motion_px", max_motion_px, "--max-motion-px", "Motion beyond this is refused, px");
   f.key("motion_compensation", motion_compensation, "--no-motion-compensation", "Do not measure or undo motion between frames");
+  f.key("max_mb", max_mb, "--captures-max-mb", "Memory for a capture's partial sums, MB (one video beyond it is read again for its windows)");
 }
 
 void CapturesSection::validate() const {
   if (window_frames < 1) rule_broken("window_frames", window_frames, "at least 1 frame");
   if (!(std::isfinite(max_motion_px) && max_motion_px > 0)) rule_broken("max_motion_px", max_motion_px, "a positive number of pixels");
+  if (!(std::isfinite(max_mb) && max_mb >= 1 && max_mb <= 1048576)) rule_broken("max_mb", max_mb, "a number of MB in 1..1048576");
   if (!both.empty() && (!baseline.empty() || !worn.empty()))
     throw SceneRuleError("both", "give either 'both' or 'baseline' and 'worn', not all three");
 }

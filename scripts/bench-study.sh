@@ -37,18 +37,20 @@ YAML
   for i in $(seq 1 $trials); do
     echo "  - {id: t$i, participant: p1, condition: band, baseline: $root/captures/baseline.mkv, worn: $root/captures/worn.mkv}"
   done; } > $root/study.yaml
-printf "%-6s %8s %11s %12s %11s\n" jobs wall_s trials_min s_per_trial max_rss_mb
+echo "== $(nproc) cores; load average before the runs: $(cut -d' ' -f1-3 /proc/loadavg)"
+printf "%-6s %8s %11s %12s %11s %9s\n" jobs wall_s trials_min s_per_trial max_rss_mb load_1min
 for j in $jobs_list; do
   rm -rf $root/out-$j
   start=$(date +%s.%N)
   $cf study run $root/study.yaml --out $root/out-$j --jobs $j --quiet > /dev/null
   end=$(date +%s.%N)
-  python3 - "$root/out-$j/study.json" "$j" "$start" "$end" "$trials" <<'PY'
+  python3 - "$root/out-$j/study.json" "$j" "$start" "$end" "$trials" "$(cut -d' ' -f1 /proc/loadavg)" <<'PY'
 import json, sys
 s = json.load(open(sys.argv[1])); j = int(sys.argv[2]); wall = float(sys.argv[4]) - float(sys.argv[3]); n = int(sys.argv[5])
+load = float(sys.argv[6])
 t = [r for r in s["trials"] if r["status"] == "ok"]
 per = sum(r["seconds"] for r in t) / len(t); rss = max(r["max_rss_mb"] for r in t)
-print(f"{j:<6d} {wall:8.1f} {60 * n / wall:11.2f} {per:12.2f} {rss:11.0f}")
+print(f"{j:<6d} {wall:8.1f} {60 * n / wall:11.2f} {per:12.2f} {rss:11.0f} {load:9.1f}")
 open(sys.argv[1] + ".bench", "w").write(json.dumps({"per_trial_s": per, "rss_mb": rss}))
 PY
 done

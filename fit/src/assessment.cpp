@@ -360,7 +360,7 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
       ro.on_frame = [series](const cv::Mat& frame, cv::Point shift) { (*series)->add(frame, shift); };
     }
     ro.progress = [&](int done, int total) {
-      if (o.progress) o.progress("reading the " + role + " capture", done, total);
+      if (o.progress) o.progress(series ? "reading the " + role + " capture" : "reading the " + role + " again, for its windows", done, total);
     };
     CaptureSums sums = read_capture(path, ro, ref);
     a.read_ms += sums.read_ms;
@@ -376,8 +376,14 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
     // The not-worn phase's own geometry changes the view at the press (and back at the removal):
     // a registration reference per geometry (capture.hpp).
     if (own_geometry) ro.max_references = 4;
-    const CaptureSums sums = read(captures.both, "capture", &worn_series);
+    ro.max_sums_mb = o.max_sums_mb;
+    CaptureSums sums = read(captures.both, "capture", &worn_series);
     const PhaseSplit split = split_phases(sums, o.window_frames);
+    if (sums.sums_dropped) {  // a long capture: read again for its two windows only (bounded memory)
+      ro.max_sums_mb = 0;
+      ro.keep_windows = {split.baseline, split.worn};
+      sums = read(captures.both, "capture", nullptr);
+    }
     base_avg = average_window(sums, split.baseline, o.window_frames, o.normalise_gains);
     worn_avg = average_window(sums, split.worn, o.window_frames, o.normalise_gains);
     if (own_geometry) place_worn_window(sums, base_avg, worn_avg, o.max_motion_px);

@@ -170,6 +170,34 @@ void revise_reference_frames(MotionRegistration& registration, CaptureSums& sums
   }
 }
 
+/// Bounded memory: releases the sums of the chunks before the one frame `n` starts that are not
+/// to be kept (CaptureReadOptions::keep_last_frames, keep_windows, max_sums_mb).
+void release_chunks(CaptureSums& sums, const CaptureReadOptions& o, int n) {
+  const int c = o.chunk_frames, current = n / c;
+  auto release = [&](int k) {
+    sums.chunk_sum[k].release();
+    if (o.colour) sums.chunk_blue[k].release();
+  };
+  for (const int drop = o.keep_last_frames > 0 ? (n - o.keep_last_frames) / c : 0; sums.released_chunks < drop; ++sums.released_chunks)
+    release(sums.released_chunks);
+  auto in_windows = [&](int k) {
+    return std::any_of(o.keep_windows.begin(), o.keep_windows.end(),
+                       [&](const FrameWindow& w) { return k * c < w.first + w.count && (k + 1) * c > w.first; });
+  };
+  if (current > 0 && !o.keep_windows.empty() && !in_windows(current - 1)) release(current - 1);
+  if (o.max_sums_mb > 0 && !sums.sums_dropped) {
+    double bytes = 0;
+    for (int k = 0; k <= current; ++k)
+      bytes += static_cast<double>(sums.chunk_sum[k].total() * sums.chunk_sum[k].elemSize()) +
+               (o.colour ? static_cast<double>(sums.chunk_blue[k].total() * sums.chunk_blue[k].elemSize()) : 0.0);
+    if (bytes > o.max_sums_mb * 1048576.0) {
+      sums.sums_dropped = true;
+      for (int k = 0; k < current; ++k) release(k);
+    }
+  }
+  if (sums.sums_dropped && current > 0) release(current - 1);
+}
+
 }  // namespace
 
 CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadOptions& options,
@@ -246,12 +274,7 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
       sums.chunk_sum.emplace_back(cv::Mat::zeros(roi.size(), CV_32F));
       if (options.colour) sums.chunk_blue.emplace_back(cv::Mat::zeros(half_grid(roi.size()), CV_32F));
       sums.chunk_count.push_back(0);
-      // Bounded memory: release the sums of chunks wholly before the frames to keep.
-      for (const int drop = options.keep_last_frames > 0 ? (n - options.keep_last_frames) / options.chunk_frames : 0;
-           sums.released_chunks < drop; ++sums.released_chunks) {
-        sums.chunk_sum[sums.released_chunks].release();
-        if (options.colour) sums.chunk_blue[sums.released_chunks].release();
-      }
+      release_chunks(sums, options, n);
     }
     cv::Mat& acc = sums.chunk_sum[chunk];
     // Adds (sign +1) or removes (-1) the frame's linear green at integer shift d; with
@@ -402,11 +425,13 @@ PhaseAverage average_window(const CaptureSums& sums, FrameWindow window, int min
                      "the averaging window holds " + std::to_string(avg.window.count) + " usable frames, fewer than the " +
                          std::to_string(min_frames) + " asked for (the capture has " + std::to_string(n) + " frames)",
                      "film longer, or lower captures.window_frames");
-  if (first_chunk < sums.released_chunks)
+  if (sums.sums_dropped || std::any_of(sums.chunk_sum.begin() + first_chunk, sums.chunk_sum.begin() + std::max(first_chunk, end_chunk),
+                                       [](const cv::Mat& m) { return m.empty(); }))
     throw InputError(sums.info.source.string(), "frames " + std::to_string(window.first) + ".." + std::to_string(window.first + window.count - 1),
-                     "the averaging window reaches frames whose sums were not kept (the read kept the last " +
-                         std::to_string((static_cast<int>(sums.chunk_sum.size()) - sums.released_chunks) * c) + " frames only)",
-                     "average the last frames of this capture");
+                     "the averaging window reaches frames whose sums were not kept (bounded memory: " +
+                         std::string(sums.sums_dropped ? "the sums outgrew captures.max_mb" : "only the last frames or the windows asked for were kept") +
+                         ")",
+                     "average the frames kept, or read the capture again keeping this window");
   // Mean of the chunks, each divided by its gain (exposure, white balance, flicker: photometric.hpp).
   const int chunks = end_chunk - first_chunk;
   auto gain_normalised_mean = [&](const std::vector<cv::Mat>& chunk_sums, std::vector<double>& gains) {

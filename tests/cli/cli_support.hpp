@@ -5,6 +5,7 @@
 #include <fcntl.h>
 #include <gtest/gtest.h>
 #include <spawn.h>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -55,6 +56,7 @@ struct RunResult {
   std::string out, err;     ///< captured stdout and stderr
   std::string command;      ///< for failure messages
   double seconds = 0;       ///< wall time
+  double max_rss_mb = 0;    ///< the process's peak resident memory (getrusage's ru_maxrss)
 };
 
 inline std::ostream& operator<<(std::ostream& os, const RunResult& r) {
@@ -90,19 +92,21 @@ inline RunResult run_clearfit(const std::vector<std::string>& args, const fs::pa
   if (rc != 0) throw std::runtime_error("posix_spawn " + exe.string() + ": " + std::strerror(rc));
 
   int status = 0;
+  struct rusage usage {};
   for (;;) {
-    const pid_t w = waitpid(pid, &status, WNOHANG);
+    const pid_t w = wait4(pid, &status, WNOHANG, &usage);
     if (w == pid) break;
-    if (w < 0) throw std::runtime_error(std::string("waitpid: ") + std::strerror(errno));
+    if (w < 0) throw std::runtime_error(std::string("wait4: ") + std::strerror(errno));
     const double elapsed = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
     if (elapsed > timeout_s) {
       kill(pid, SIGKILL);
-      waitpid(pid, &status, 0);
+      wait4(pid, &status, 0, &usage);
       break;
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(2));
   }
   r.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  r.max_rss_mb = usage.ru_maxrss / 1024.0;
   r.exit_code = WIFEXITED(status) ? WEXITSTATUS(status) : 128 + (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
   r.out = read_text(out_path);
   r.err = read_text(err_path);

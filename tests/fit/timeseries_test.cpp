@@ -70,7 +70,7 @@ BinnedSeries make_series(const std::function<double(double)>& y, int frames, int
 
 TEST(TimeConstantFits, RefillRecoversTau) {
   // τ between 0.3 and 3 s, sampled per frame and per 4 frames, with noise of 2 % of the step per frame: within 10 %.
-  for (double tau : {0.37, 0.85, 1.9, 2.8})
+  for (double tau : {0.3, 0.37, 0.85, 1.9, 2.8, 3.0})
     for (int m : {1, 4}) {
       const double fps = 30, tr = 2.0, a = 0.05, c = 0.002;
       auto y = [&](double t) { return t < tr ? a + c : c + a * std::exp(-(t - tr) / tau); };

@@ -17,7 +17,7 @@
 //             folder: out}
 //   baseline: {part: held, gap_mm: auto}   # how the not-worn capture was filmed (held | absent | touching)
 //   captures: {baseline: a.mkv, worn: b.mkv, both: c.mkv, window_frames: 100, max_motion_px: 10,
-//              motion_compensation: true}
+//              motion_compensation: true, max_mb: 1024}
 //   calibration: {pressure: calibration.json, person: P1}
 //   assess: {smoothing_mm: 0.25, thresholds_kpa: [4.3, 5.5], reference_uv_mm: [u, v],
 //            reference_radius_mm: 2, min_hotspot_area_mm2: 0.05,
@@ -279,6 +279,7 @@ struct CapturesSection {
   int window_frames = AssessmentOptions{}.window_frames;
   double max_motion_px = AssessmentOptions{}.max_motion_px;
   bool motion_compensation = AssessmentOptions{}.compensate_motion;
+  double max_mb = AssessmentOptions{}.max_sums_mb;
   void bind(SceneFields& f);
   void validate() const;
 };

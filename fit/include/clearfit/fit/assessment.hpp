@@ -31,6 +31,9 @@ struct AssessmentOptions {
   int chunk_frames = 5;              ///< granularity of the windows, frames
   bool compensate_motion = true;
   double max_motion_px = 10.0;
+  /// Memory for one capture's chunk sums, MB. One video holding both phases whose sums outgrow
+  /// it is read a second time, keeping the sums of its two windows only (bounded memory).
+  double max_sums_mb = 1024;
   BlanchingOptions blanching;
   GlareOptions glare;                ///< specular highlights masked out of the signal (glare.hpp)
   bool normalise_gains = true;       ///< divide each chunk by its exposure / white-balance / flicker gain (photometric.hpp)

@@ -3,7 +3,10 @@
 // once. Each frame's green channel is linearised from sRGB and added, inside
 // the region of the image that can see the skin, into partial sums of a few
 // frames ("chunks"), so averaging windows are chosen after the read without
-// decoding anything twice. Per frame the read also measures motion (a
+// decoding anything twice. Memory is bounded: the sums before the last frames, or
+// outside windows known beforehand, are released as the read goes; a caller that
+// learns its windows only at the end caps the sums (max_sums_mb) and, beyond the
+// cap, reads again keeping its windows only. Per frame the read also measures motion (a
 // similarity from a grid of high-passed log-red patches against a reference
 // frame: registration.hpp), the mean green of an 8×8
 // grid of blocks (for splitting one video into its two phases; from every other row),
@@ -30,6 +33,11 @@
 
 namespace clearfit {
 
+/// A window of frames [first, first + count) of a capture, chunk-aligned.
+struct FrameWindow {
+  int first = 0, count = 0;
+};
+
 struct CaptureReadOptions {
   cv::Rect roi;                   ///< pixels that can see the skin; empty: the whole image
   int chunk_frames = 5;           ///< frames per stored partial sum
@@ -50,6 +58,12 @@ struct CaptureReadOptions {
   /// Bounded memory: keep the chunk sums of the last this many frames only (older ones are
   /// released as the read goes; windows must lie in the kept frames). 0: keep every chunk.
   int keep_last_frames = 0;
+  /// Bounded memory when the windows are known only after the read (one video holding both
+  /// phases): beyond this many MB of chunk sums none is kept any longer (CaptureSums::sums_dropped;
+  /// the caller reads the capture again for its windows). 0: no limit.
+  double max_sums_mb = 0;
+  /// When not empty: only the chunks overlapping these windows keep their sums.
+  std::vector<FrameWindow> keep_windows;
   /// Called after each frame (frames done, frames expected or 0 if unknown).
   std::function<void(int, int)> progress;
   /// Called with each frame as decoded and the integer shift it was accumulated at (aligned
@@ -72,6 +86,7 @@ struct CaptureSums {
   std::vector<cv::Mat> chunk_sum;      ///< CV_32F (roi size) sums of linear green, aligned to the reference
   std::vector<int> chunk_count;        ///< frames in each chunk
   int released_chunks = 0;             ///< chunks [0, released_chunks) had their sums released (keep_last_frames)
+  bool sums_dropped = false;           ///< the sums outgrew max_sums_mb and were released: read again with keep_windows
   std::vector<cv::Mat> chunk_blue;     ///< CV_32F (half_grid of the roi) sums of linear blue, aligned (empty without `colour`)
   std::vector<Vec2> shift_px;          ///< per frame: content displacement against the reference at the roi's centre, px
   std::vector<Similarity> motion;      ///< per frame: the whole measured motion (rotation and scale too; identity unregistered)
@@ -91,11 +106,6 @@ struct CaptureSums {
 /// beyond the limit (naming the frame and the size), no frames.
 CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadOptions& options,
                          MotionReference& reference);
-
-/// A window of frames [first, first + count) of a capture, chunk-aligned.
-struct FrameWindow {
-  int first = 0, count = 0;
-};
 
 /// The average of a window: linear green, aligned to the reference frame up
 /// to `residual_shift_px` (the mean sub-pixel motion still to be applied when
