@@ -1,6 +1,8 @@
 // clearfit study end to end: a small study (two simulated trials that run, one
 // whose capture is missing, one naming an unknown participant) run on a local
-// pool, killed and resumed, its failures listed without stopping the rest; and
+// pool, killed and resumed, its failures listed without stopping the rest; a participant
+// without calibration where kPa is asked, a capture too short for the windows and a
+// duplicate trial id, each failing its trial alone with its message; and
 // the same study as a Slurm job array on a one-node cluster started on
 // localhost by the test (slurmctld + slurmd + munged with a private key and
 // socket), which must give the same tables.
@@ -153,6 +155,39 @@ TEST_F(StudyCli, BadManifestIsRefusedWithItsLine) {
                                     "trials:\n  - {id: t, participant: p1, condition: c, both: a.mkv, forse_n: 3}\n");
   expect_input_error({"study", "run", "study.yaml", "--out", "out"}, {"study.yaml", "line 6", "trials[0].forse_n", "unknown key"});
   expect_input_error({"study", "job", "study.yaml", "--out", "out", "--index", "1"}, {"study.yaml", "study.yaml"});
+}
+
+TEST_F(StudyCli, TrialsBadInputsFailAloneWithTheirMessage) {
+  // A participant without calibration where kPa is asked, a capture too short for the
+  // condition's windows and a duplicate trial id: each trial listed with its message, exit 2.
+  const fs::path d = data();
+  const std::string c11 = (d / "captures-11").string();
+  {
+    std::string scene = read_text(d / "scene.yaml");
+    const std::string from = "window_frames: 30", to = "window_frames: 200";
+    scene.replace(scene.find(from), from.size(), to);
+    const std::string cam = "camera: captures-11/", abs_cam = "camera: " + c11 + "/";
+    scene.replace(scene.find(cam), cam.size(), abs_cam);
+    write_text(work() / "long-window.yaml", scene);
+  }
+  write_text(work() / "study.yaml",
+             "study: bad\nparticipants:\n  - {id: p1, person: wearer-1, calibration: " + (d / "calibration.json").string() +
+                 "}\n  - {id: p2}\nconditions:\n  - {id: band, scene: " + (d / "scene.yaml").string() +
+                 "}\n  - {id: long, scene: long-window.yaml}\ntrials:\n"
+                 "  - {id: t1, participant: p2, condition: band, baseline: " + c11 + "/baseline.mkv, worn: " + c11 + "/worn.mkv}\n"
+                 "  - {id: t2, participant: p1, condition: long, baseline: " + c11 + "/baseline.mkv, worn: " + c11 + "/worn.mkv}\n"
+                 "  - {id: t2, participant: p1, condition: band, baseline: " + c11 + "/baseline.mkv, worn: " + c11 + "/worn.mkv}\n"
+                 "analysis: {pressure: true}\n");
+  const RunResult r = study({"run", "study.yaml", "--out", "out", "--jobs", "1", "--quiet"});
+  EXPECT_EQ(r.exit_code, 2) << r;
+  const auto trials = rows(work() / "out");
+  ASSERT_EQ(trials.size(), 3u) << trials.dump(1);
+  const char* expected[] = {"p2' has no calibration", "fewer than the 200 asked for", "duplicate trial id 't2'"};
+  for (int i = 0; i < 3; ++i) {
+    EXPECT_EQ(trials[i]["status"], "failed") << trials[i];
+    EXPECT_NE(trials[i]["error"].get<std::string>().find(expected[i]), std::string::npos) << trials[i];
+  }
+  for (const char* id : {"t1", "t2"}) EXPECT_NE(r.err.find(std::string("trial ") + id + " failed"), std::string::npos) << r;
 }
 
 /// A one-node Slurm cluster on localhost with its own munge key and socket.
