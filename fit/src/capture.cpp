@@ -170,32 +170,34 @@ void revise_reference_frames(MotionRegistration& registration, CaptureSums& sums
   }
 }
 
-/// Bounded memory: releases the sums of the chunks before the one frame `n` starts that are not
-/// to be kept (CaptureReadOptions::keep_last_frames, keep_windows, max_sums_mb).
-void release_chunks(CaptureSums& sums, const CaptureReadOptions& o, int n) {
-  const int c = o.chunk_frames, current = n / c;
+/// Bounded memory: releases the sums of the chunks before chunk `open` (the one being summed;
+/// the number of chunks once the read has ended) that are not to be kept
+/// (CaptureReadOptions::keep_last_frames, keep_windows, max_sums_mb); `n`: frames read.
+void release_chunks(CaptureSums& sums, const CaptureReadOptions& o, int n, int open) {
+  const int c = o.chunk_frames;
   auto release = [&](int k) {
     sums.chunk_sum[k].release();
     if (o.colour) sums.chunk_blue[k].release();
   };
-  for (const int drop = o.keep_last_frames > 0 ? (n - o.keep_last_frames) / c : 0; sums.released_chunks < drop; ++sums.released_chunks)
+  for (const int drop = o.keep_last_frames > 0 ? std::min(open, (n - o.keep_last_frames) / c) : 0; sums.released_chunks < drop;
+       ++sums.released_chunks)
     release(sums.released_chunks);
   auto in_windows = [&](int k) {
     return std::any_of(o.keep_windows.begin(), o.keep_windows.end(),
                        [&](const FrameWindow& w) { return k * c < w.first + w.count && (k + 1) * c > w.first; });
   };
-  if (current > 0 && !o.keep_windows.empty() && !in_windows(current - 1)) release(current - 1);
+  if (open > 0 && !o.keep_windows.empty() && !in_windows(open - 1)) release(open - 1);
   if (o.max_sums_mb > 0 && !sums.sums_dropped) {
     double bytes = 0;
-    for (int k = 0; k <= current; ++k)
+    for (int k = 0; k < std::min(open + 1, static_cast<int>(sums.chunk_sum.size())); ++k)
       bytes += static_cast<double>(sums.chunk_sum[k].total() * sums.chunk_sum[k].elemSize()) +
                (o.colour ? static_cast<double>(sums.chunk_blue[k].total() * sums.chunk_blue[k].elemSize()) : 0.0);
     if (bytes > o.max_sums_mb * 1048576.0) {
       sums.sums_dropped = true;
-      for (int k = 0; k < current; ++k) release(k);
+      for (int k = 0; k < open; ++k) release(k);
     }
   }
-  if (sums.sums_dropped && current > 0) release(current - 1);
+  if (sums.sums_dropped && open > 0) release(open - 1);
 }
 
 }  // namespace
@@ -274,7 +276,7 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
       sums.chunk_sum.emplace_back(cv::Mat::zeros(roi.size(), CV_32F));
       if (options.colour) sums.chunk_blue.emplace_back(cv::Mat::zeros(half_grid(roi.size()), CV_32F));
       sums.chunk_count.push_back(0);
-      release_chunks(sums, options, n);
+      release_chunks(sums, options, n, chunk);
     }
     cv::Mat& acc = sums.chunk_sum[chunk];
     // Adds (sign +1) or removes (-1) the frame's linear green at integer shift d; with
@@ -393,6 +395,7 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
     sums.last_frame = frame;
   }
   if (n == 0) throw InputError(source.string(), "", "holds no frames", "check the " + role + " capture");
+  release_chunks(sums, options, n, static_cast<int>(sums.chunk_sum.size()));  // the last chunk too
   // A capture shorter than the reference's frames: the reference is what it holds.
   if (first_reference && first_reference->has_reference() && first_reference->reference_open())
     revise_reference_frames(*first_reference, sums);

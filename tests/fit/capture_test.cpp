@@ -4,6 +4,7 @@
 #include <clearfit/error.hpp>
 #include <clearfit/fit/blanching.hpp>
 #include <clearfit/fit/capture.hpp>
+#include <clearfit/fit/photometric.hpp>
 #include <clearfit/fit/srgb.hpp>
 #include <gtest/gtest.h>
 
@@ -188,6 +189,47 @@ TEST_F(CaptureTest, SplitsOneVideoIntoBaselineAndPressAndMeasuresTheSignal) {
   bo.reference_radius_mm = 1.0;
   const BlanchingSignal wrong = compute_blanching(base, worn, inv, bo);
   EXPECT_NEAR(wrong.y.value[wrong.y.grid.index(20, 20)], -expected, 0.004);
+}
+
+TEST_F(CaptureTest, CappedSumsAreReadAgainForTheWindowsOnly) {
+  // One video whose sums outgrow max_sums_mb: they are released (sums_dropped, averaging refused);
+  // read again keeping two windows, only their chunks hold sums and their averages equal those
+  // of a read that keeps every chunk.
+  Scene s;
+  std::mt19937 rng(5);
+  std::vector<cv::Mat> frames;
+  for (int i = 0; i < 60; ++i) frames.push_back(render(s, {0, 0}, i >= 30, rng, 1.0));
+  const auto folder = write_frames("both", frames);
+  CaptureReadOptions o;
+  o.register_motion = false;
+  o.chunk_frames = 4;
+  MotionReference ref;
+  const CaptureSums all = read_capture(folder, o, ref);
+  const double chunk_mb = (s.width * s.height * 4.0 + half_grid(cv::Size(s.width, s.height)).area() * 4.0) / 1048576;
+  o.max_sums_mb = 3.5 * chunk_mb;
+  const CaptureSums capped = read_capture(folder, o, ref);
+  EXPECT_TRUE(capped.sums_dropped);
+  EXPECT_FALSE(all.sums_dropped);
+  int held = 0;
+  for (const cv::Mat& m : capped.chunk_sum) held += !m.empty();
+  EXPECT_EQ(held, 0);
+  EXPECT_EQ(capped.blocks.size(), all.blocks.size());
+  const FrameWindow base{6, 20}, worn{36, 20};
+  EXPECT_THROW(average_window(capped, base, 16), InputError);
+  o.max_sums_mb = 0;
+  o.keep_windows = {base, worn};
+  const CaptureSums windows = read_capture(folder, o, ref);
+  for (int k = 0; k < static_cast<int>(windows.chunk_sum.size()); ++k) {
+    const bool in = (k * 4 < 26 && k * 4 + 4 > 6) || (k * 4 < 56 && k * 4 + 4 > 36);
+    EXPECT_EQ(!windows.chunk_sum[k].empty(), in) << "chunk " << k;
+  }
+  for (const FrameWindow& w : {base, worn}) {
+    const PhaseAverage a = average_window(all, w, 16), b = average_window(windows, w, 16);
+    EXPECT_EQ(a.window.first, b.window.first);
+    EXPECT_EQ(a.window.count, b.window.count);
+    EXPECT_EQ(cv::norm(a.mean, b.mean, cv::NORM_INF), 0.0);
+  }
+  EXPECT_THROW(average_window(windows, FrameWindow{26, 8}, 4), InputError);
 }
 
 TEST_F(CaptureTest, NoPressIsAMissingPhase) {
