@@ -1,8 +1,8 @@
 // The worn phase over time, end to end: clearfit simulate renders one video holding the
 // baseline, the press and the skin refilling after the part's removal (quarter resolution,
 // 30 fps), with the onset and refill time constants as truth (truth.json); clearfit assess
-// follows the place over time. The refill τ is recovered within 10 % (τ of 0.45, 1.3 and
-// 2.7 s), the onset within two frames, the time above the threshold against the truth
+// follows the place over time. The refill τ is recovered within 10 % (τ of 0.3, 0.45, 1.3,
+// 2.7 and 3.0 s: the ends of the 0.3–3 s range and between), the onset within two frames, the time above the threshold against the truth
 // h(t) at the place's measured level; a refill too short to measure and a worn phase too
 // short for its window say so.
 #include <nlohmann/json.hpp>
@@ -56,6 +56,8 @@ class TimelineCli : public CliTest {
     ASSERT_TRUE(t["release_s"].is_number());
     EXPECT_NEAR(t["release_s"].get<double>(), tr, 0.5 * c.tau_off_s + 3 / fps);
     ASSERT_TRUE(place["refill"]["fitted"].get<bool>()) << place.dump(1);
+    std::cerr << "refill tau " << place["refill"]["tau_s"].get<double>() << " +- " << place["refill"]["tau_sigma_s"].get<double>()
+              << " s (truth " << c.tau_off_s << " s)\n";
     EXPECT_NEAR(place["refill"]["tau_s"].get<double>(), c.tau_off_s, 0.10 * c.tau_off_s) << place.dump(1);
     EXPECT_GT(place["refill"]["tau_sigma_s"].get<double>(), 0);
     // Onset within two frames.
@@ -81,6 +83,9 @@ class TimelineCli : public CliTest {
 TEST_F(TimelineCli, FastRefill) { check_refill({.tau_on_s = 0.2, .tau_off_s = 0.45, .release_s = 2.5}); }
 TEST_F(TimelineCli, MediumRefill) { check_refill({.tau_on_s = 0.35, .tau_off_s = 1.3, .release_s = 5.5}); }
 TEST_F(TimelineCli, SlowRefill) { check_refill({.tau_on_s = 0.25, .tau_off_s = 2.7, .release_s = 9.5}); }
+// The ends of the 0.3–3 s range of refill time constants.
+TEST_F(TimelineCli, FastestRefill) { check_refill({.tau_on_s = 0.2, .tau_off_s = 0.3, .release_s = 2.5}); }
+TEST_F(TimelineCli, SlowestRefill) { check_refill({.tau_on_s = 0.25, .tau_off_s = 3.0, .release_s = 10.5}); }
 
 TEST_F(TimelineCli, RefillTooShortSaysSo) {
   const RunResult r = run_case({.tau_off_s = 2.0, .release_s = 1.0});
