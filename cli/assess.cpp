@@ -97,6 +97,8 @@ Run add_assess(CLI::App& app) {
                    {"min_hotspot_area_mm2", sc.assess.min_hotspot_area_mm2},
                    {"glare_mask", sc.assess.glare.options.enabled},
                    {"glare_margin_px", sc.assess.glare.options.margin_px},
+                   {"phase_registration", sc.assess.phase_registration.options.enabled},
+                   {"phase_registration_smoothing_mm", sc.assess.phase_registration.options.smoothing_mm},
                    {"exposure_normalisation", sc.assess.normalise_exposure},
                    {"timeseries", sc.assess.timeseries.options.enabled},
                    {"timeseries_cell_px", sc.assess.timeseries.options.cell_px},

@@ -280,6 +280,25 @@ void GlareSection::validate() const {
   }
 }
 
+void PhaseRegistrationSection::bind(SceneFields& f) {
+  f.key("enabled", options.enabled, "--no-phase-registration",
+        "Do not register the worn capture's skin to the not-worn one's on the chart (skin that slid or bulged is then read as pressure)");
+  f.key("highpass_mm", options.highpass_mm);
+  f.key("smoothing_mm", options.smoothing_mm, "--phase-registration-smoothing-mm", "Smoothing of the phases' displacement field, mm");
+  f.key("red_green_ratio", options.red_green_ratio);
+  f.key("max_displacement_mm", options.max_displacement_mm);
+  f.key("min_match", options.min_match);
+  f.key("max_weak_fraction", options.max_weak_fraction);
+}
+
+void PhaseRegistrationSection::validate() const {
+  try {
+    options.validate();
+  } catch (const std::invalid_argument& e) {
+    throw SceneRuleError("", e.what());
+  }
+}
+
 void TimeSeriesSection::bind(SceneFields& f) {
   f.key("enabled", options.enabled, "--no-timeseries", "Do not follow the worn phase over time (no timeline)");
   f.key("cell_px", options.cell_px, "--timeseries-cell-px", "Cell edge of the time series in the camera image, px");
@@ -299,6 +318,7 @@ void TimeSeriesSection::validate() const {
 
 void AssessSection::bind(SceneFields& f) {
   f.section("glare", glare);
+  f.section("phase_registration", phase_registration);
   f.section("timeseries", timeseries);
   f.key("normalise_exposure", normalise_exposure, "--no-exposure-normalisation",
         "Do not divide each 5-frame chunk by its exposure / white-balance / flicker gain");
@@ -324,6 +344,11 @@ void AssessSection::validate() const {
     timeseries.validate();
   } catch (const SceneRuleError& e) {
     throw SceneRuleError("timeseries", e.what());
+  }
+  try {
+    phase_registration.validate();
+  } catch (const SceneRuleError& e) {
+    throw SceneRuleError("phase_registration", e.what());
   }
   if (!(std::isfinite(smoothing_mm) && smoothing_mm >= 0)) rule_broken("smoothing_mm", smoothing_mm, ">= 0 mm");
   for (double t : thresholds_kpa)

@@ -48,7 +48,7 @@ class SimulationParser {
 
   void parse(const YAML::Node& s, SimulationSection& o) {
     r_.only_keys(s, "simulation", {"preset", "seed", "out", "format", "crf", "scale", "timeline", "skin", "camera", "flicker", "motion", "pressure",
-                                   "presses", "glare", "exposure", "baseline"});
+                                   "presses", "glare", "exposure", "baseline", "skin_motion"});
     // The preset first: every key read below replaces its value.
     if (auto v = r_.get<std::string>(s, "preset", "simulation.preset", "realistic or none")) {
       if (*v != "realistic" && *v != "none")
@@ -123,6 +123,12 @@ class SimulationParser {
         else r_.fail(b["part"], "simulation.baseline.part", "expected held, absent or touching, got '" + *v + "'");
       }
       num(b, "gap_mm", "simulation.baseline.gap_mm", o.baseline.gap_mm, 0, 20);
+    if (const YAML::Node m = s["skin_motion"]) {
+      r_.only_keys(m, "simulation.skin_motion", {"slide_mm", "bulge_mm", "bulge_width_mm"});
+      if (m["slide_mm"]) o.skin_motion.slide_mm = vec2(m["slide_mm"], "simulation.skin_motion.slide_mm");
+      if (o.skin_motion.slide_mm.norm() > 5) r_.fail(m["slide_mm"], "simulation.skin_motion.slide_mm", "expected a slide of at most 5 mm");
+      num(m, "bulge_mm", "simulation.skin_motion.bulge_mm", o.skin_motion.bulge_mm, -2, 2);
+      num(m, "bulge_width_mm", "simulation.skin_motion.bulge_width_mm", o.skin_motion.bulge_width_mm, 0.1, 20);
     }
     if (const YAML::Node p = s["pressure"]) parse_pressure(p, o);
     if (const YAML::Node p = s["presses"]) parse_presses(p, o);
@@ -261,6 +267,7 @@ void SimulationSection::validate() const {
     if (presses) presses->validate();
     photometric.validate();
     baseline.validate();
+    skin_motion.validate();
   } catch (const std::invalid_argument& e) {
     throw SceneRuleError("", e.what());
   }

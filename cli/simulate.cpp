@@ -178,18 +178,26 @@ Run add_simulate(CLI::App& app) {
           << baseline_map->stats.by_status[0] << " pixels see it";
         say(b.str());
       }
+      // Skin that slid and bulged between the phases: the worn frames read the texture displaced.
+      std::optional<sim::SkinDisplacement> skin_moved;
+      std::optional<sim::CaptureRenderer> worn_renderer;
+      if (spec.skin_motion.any()) {
+        skin_moved = sim::skin_displacement(spec.skin_motion, truth.pressure);
+        worn_renderer.emplace(map, drive, spec.skin, spec.camera, spec.seed, &*skin_moved);
+      }
       say("skin model and per-pixel terms ready (" + std::to_string(seconds_since(t0)).substr(0, 4) + " s)");
       int last_decile = -1;
       std::optional<sim::PhotometricSchedule> photometry;
       if (spec.photometric.any()) photometry.emplace(spec.photometric, spec.camera, spec.timeline, cv::Size(map.width, map.height));
       sim::CaptureSummary cap = sim::render_captures(
-          renderer, spec.skin, spec.timeline, spec.camera, spec.format, dir, spec.seed, [&](int done, int total) {
+          worn_renderer ? *worn_renderer : renderer, spec.skin, spec.timeline, spec.camera, spec.format, dir, spec.seed, [&](int done, int total) {
             const int decile = 10 * done / total;
             if (decile != last_decile) {
               last_decile = decile;
               say("frame " + std::to_string(done) + "/" + std::to_string(total));
             }
-          }, photometry ? &*photometry : nullptr, baseline_renderer ? &*baseline_renderer : nullptr);
+          }, photometry ? &*photometry : nullptr,
+          baseline_renderer ? &*baseline_renderer : worn_renderer ? &renderer : nullptr);
       cap.baseline = spec.baseline;
       std::vector<std::pair<std::string, std::string>> inputs{{"scene", sc.file.string()}, {"mesh", sc.part.mesh}, {"camera", sc.part.camera}};
       if (!sc.part.pose.empty()) inputs.emplace_back("pose", sc.part.pose);
@@ -206,6 +214,10 @@ Run add_simulate(CLI::App& app) {
       if (photometry)
         for (const auto& f : photometry->write_truth(dir)) written.push_back(f);
       record_preset(dir / "truth.json", spec);
+      if (skin_moved) {
+        sim::write_displacement_npy(*skin_moved, dir / "truth_displacement.npy");
+        written.emplace_back("truth_displacement.npy");
+      }
       const int frames = cap.baseline_frames + cap.press_frames + cap.release_frames;
       std::ostringstream s;
       s.precision(3);

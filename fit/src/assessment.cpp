@@ -343,17 +343,19 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
   ro.register_motion = o.compensate_motion;
   ro.seen = seen_pixels(map, ro.roi);
   ro.colour = o.glare.enabled;
+  ro.red = o.phase_registration.enabled;
   ro.max_motion_px = o.max_motion_px;
   ro.expected_width = scene.camera->width;
   ro.expected_height = scene.camera->height;
   // With its own geometry the baseline sees the skin elsewhere in the image: each phase is
-  // registered to its own first frame, and the maps bring both onto the chart.
+  // registered to its own first frame, and the maps bring both onto the chart. With the phase
+  // registration too: the skin's move between the phases is the registration's, not the camera's.
   MotionReference reference, worn_reference;
   if (o.timeseries.enabled) o.timeseries.validate();
   std::optional<TimeSeriesRecorder> base_series, worn_series;  // the worn phase over time (timeseries.hpp)
   auto read = [&](const std::filesystem::path& path, const std::string& role, std::optional<TimeSeriesRecorder>* series) {
     ro.role = role;
-    MotionReference& ref = own_geometry && role == "worn" ? worn_reference : reference;
+    MotionReference& ref = (own_geometry || o.phase_registration.enabled) && role == "worn" ? worn_reference : reference;
     ro.on_frame = nullptr;
     if (o.timeseries.enabled && series && ro.roi.area() > 0) {
       series->emplace(ro.roi & cv::Rect(0, 0, map.width, map.height), o.timeseries);
@@ -386,7 +388,7 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
     }
     base_avg = average_window(sums, split.baseline, o.window_frames, o.normalise_gains);
     worn_avg = average_window(sums, split.worn, o.window_frames, o.normalise_gains);
-    if (own_geometry) place_worn_window(sums, base_avg, worn_avg, o.max_motion_px);
+    if (own_geometry || o.phase_registration.enabled) place_worn_window(sums, base_avg, worn_avg, o.max_motion_px);
     a.baseline = phase_report(sums, base_avg, o.compensate_motion);
     a.worn = phase_report(sums, worn_avg, o.compensate_motion);
     a.split = split;
@@ -414,9 +416,23 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
     base_map = baseline_geometry(scene, base_avg, worn_avg, a, o);
     base_inv = compute_inverse_map(*base_map, scene.inverse_options, scene.contact);
   }
+  // Skin that slid or bulged between the phases: the baseline is read where its skin went
+  // (phase_registration.hpp), from whichever inverse map reads it (its own geometry's or the worn one).
+  const InverseMap& from = base_inv ? *base_inv : inv;
+  std::optional<InverseMap> moved_inverse;
+  if (o.phase_registration.enabled) {
+    if (o.progress) o.progress("registering the phases", 0, 0);
+    a.phase_registration = register_phases(base_avg, worn_avg, from, inv, {}, o.phase_registration);
+    for (const auto& w : a.phase_registration.warnings) a.warnings.push_back(w);
+    // A field under half a texel almost everywhere is noise on still skin: the baseline is left where it is.
+    if (a.phase_registration.applied && a.phase_registration.p95_mm > 0.5 * inv.texel_mm)
+      moved_inverse = displaced_inverse(from, a.phase_registration);
+  }
+  // The baseline's inverse map from here on (nullptr: the worn one serves both).
+  const InverseMap* base_view = moved_inverse ? &*moved_inverse : base_inv ? &*base_inv : nullptr;
   // Glare first: a mostly-glare capture is refused as such, and saturated glare is not overexposure.
   // The phases are compared where they see the same skin.
-  const PhaseAverage base_for_glare = own_geometry ? in_worn_geometry(base_avg, map, *base_inv) : base_avg;
+  const PhaseAverage base_for_glare = base_view ? in_worn_geometry(base_avg, map, *base_view) : base_avg;
   a.glare = detect_glare(base_for_glare, worn_avg, seen_pixels(map, base_avg.roi), o.glare);
   check_glare(a.glare, a.baseline, a.worn, o.glare, a.warnings);
   const double glare_of_roi = a.glare.empty() ? 0.0 : cv::countNonZero(a.glare.mask) / static_cast<double>(a.glare.mask.total());
@@ -444,8 +460,8 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
   BlanchingOptions bo = o.blanching;
   if (!a.glare.empty()) bo.excluded = a.glare_texels;
   bo.spatial_noise = a.baseline.lossy || a.worn.lossy;
-  if (own_geometry) bo.log_transmittance_ratio = log_transmittance_ratio(map, inv, *base_map, *base_inv);
-  a.signal = compute_blanching(base_avg, worn_avg, inv, bo, base_inv ? &*base_inv : nullptr);
+  if (own_geometry) bo.log_transmittance_ratio = log_transmittance_ratio(map, inv, *base_map, *base_view);
+  a.signal = compute_blanching(base_avg, worn_avg, inv, bo, base_view);
   if (bo.spatial_noise) warn_lossy(a);
   for (const auto& w : a.signal.warnings) a.warnings.push_back(w);
   const ChartGrid& g = a.signal.y.grid;
@@ -524,10 +540,10 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
     if (a.split) ti.press_frame = a.split->press_frame, ti.release_frame = a.split->release_frame;
     ti.residual_shift_px = worn_avg.residual_shift_px;
     ti.inverse = &inv;
-    if (own_geometry) {
-      ti.baseline_inverse = &*base_inv;
+    if (base_view) {
+      ti.baseline_inverse = base_view;
       ti.baseline_residual_shift_px = base_avg.residual_shift_px;
-      ti.log_transmittance_ratio = &bo.log_transmittance_ratio;
+      if (own_geometry) ti.log_transmittance_ratio = &bo.log_transmittance_ratio;
     }
     ti.field = a.calibrated ? &a.pressure : &a.signal.y;
     ti.labels = &a.hotspot_labels;

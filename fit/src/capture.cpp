@@ -178,6 +178,7 @@ void release_chunks(CaptureSums& sums, const CaptureReadOptions& o, int n, int o
   auto release = [&](int k) {
     sums.chunk_sum[k].release();
     if (o.colour) sums.chunk_blue[k].release();
+    if (o.red) sums.chunk_red[k].release();
   };
   for (const int drop = o.keep_last_frames > 0 ? std::min(open, (n - o.keep_last_frames) / c) : 0; sums.released_chunks < drop;
        ++sums.released_chunks)
@@ -191,7 +192,8 @@ void release_chunks(CaptureSums& sums, const CaptureReadOptions& o, int n, int o
     double bytes = 0;
     for (int k = 0; k < std::min(open + 1, static_cast<int>(sums.chunk_sum.size())); ++k)
       bytes += static_cast<double>(sums.chunk_sum[k].total() * sums.chunk_sum[k].elemSize()) +
-               (o.colour ? static_cast<double>(sums.chunk_blue[k].total() * sums.chunk_blue[k].elemSize()) : 0.0);
+               (o.colour ? static_cast<double>(sums.chunk_blue[k].total() * sums.chunk_blue[k].elemSize()) : 0.0) +
+               (o.red ? static_cast<double>(sums.chunk_red[k].total() * sums.chunk_red[k].elemSize()) : 0.0);
     if (bytes > o.max_sums_mb * 1048576.0) {
       sums.sums_dropped = true;
       for (int k = 0; k < open; ++k) release(k);
@@ -275,6 +277,7 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
     if (chunk >= static_cast<int>(sums.chunk_sum.size())) {
       sums.chunk_sum.emplace_back(cv::Mat::zeros(roi.size(), CV_32F));
       if (options.colour) sums.chunk_blue.emplace_back(cv::Mat::zeros(half_grid(roi.size()), CV_32F));
+      if (options.red) sums.chunk_red.emplace_back(cv::Mat::zeros(roi.size(), CV_32F));
       sums.chunk_count.push_back(0);
       release_chunks(sums, options, n, chunk);
     }
@@ -363,6 +366,7 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
       accumulate(d, 1.f, false);
     }
     if (options.colour) accumulate_half_blue(frame, roi, d, sums.chunk_blue[chunk]);
+    if (options.red) accumulate_red(frame, roi, d, sums.chunk_red[chunk]);
     ++sums.chunk_count[chunk];
     if (options.on_frame) options.on_frame(frame, d);
     std::array<float, 64> blocks{};
@@ -451,9 +455,10 @@ PhaseAverage average_window(const CaptureSums& sums, FrameWindow window, int min
     mean /= avg.window.count;
     return mean;
   };
-  std::vector<double> gains, blue_gains;
+  std::vector<double> gains, blue_gains, red_gains;
   avg.mean = gain_normalised_mean(sums.chunk_sum, gains);
   if (!sums.chunk_blue.empty()) avg.blue_half = gain_normalised_mean(sums.chunk_blue, blue_gains);
+  if (!sums.chunk_red.empty()) avg.red = gain_normalised_mean(sums.chunk_red, red_gains);
   // Variance of the mean from the spread of the gain-normalised chunk means (equal-size chunks).
   avg.variance = cv::Mat::zeros(sums.roi.size(), CV_32F);
   if (chunks >= 3) {

@@ -29,6 +29,22 @@ void accumulate_half_blue(const cv::Mat& bgr, const cv::Rect& roi, cv::Point d, 
   });
 }
 
+void accumulate_red(const cv::Mat& bgr, const cv::Rect& roi, cv::Point d, cv::Mat& sum) {
+  const float* lut = srgb::to_linear_table8();
+  const int w = bgr.cols, h = bgr.rows;
+  CV_Assert(sum.type() == CV_32F && sum.size() == roi.size());
+  tbb::parallel_for(tbb::blocked_range<int>(0, roi.height, 16), [&](const tbb::blocked_range<int>& rows) {
+    for (int y = rows.begin(); y < rows.end(); ++y) {
+      const auto* src = bgr.ptr<cv::Vec3b>(std::clamp(roi.y + y + d.y, 0, h - 1));
+      float* dst = sum.ptr<float>(y);
+      const int x0 = roi.x + d.x, lo = std::clamp(-x0, 0, roi.width), hi = std::clamp(w - x0, lo, roi.width);
+      for (int x = 0; x < lo; ++x) dst[x] += lut[src[0][2]];
+      for (int x = lo; x < hi; ++x) dst[x] += lut[src[x0 + x][2]];
+      for (int x = hi; x < roi.width; ++x) dst[x] += lut[src[w - 1][2]];
+    }
+  });
+}
+
 ChunkGains estimate_chunk_gains(const std::vector<cv::Mat>& sums, const std::vector<int>& counts, int first, int end,
                                 const cv::Mat& mean) {
   ChunkGains g;

@@ -92,7 +92,7 @@ void Timeline::validate() const {
 }
 
 CaptureRenderer::CaptureRenderer(const RefractionMap& map, const ChartField& drive, const SkinParameters& skin,
-                                 const CameraSettings& camera, std::uint64_t seed)
+                                 const CameraSettings& camera, std::uint64_t seed, const SkinDisplacement* texture_shift)
     : map_(map), skin_(skin), cam_(camera), seed_(seed), width_(map.width), height_(map.height) {
   const auto t0 = std::chrono::steady_clock::now();
   skin_.validate();
@@ -114,7 +114,8 @@ CaptureRenderer::CaptureRenderer(const RefractionMap& map, const ChartField& dri
   tbb::parallel_for(0, tex_grid_.height, [&](int j) {
     for (int i = 0; i < tex_grid_.width; ++i) {
       const Vec2 uv = tex_grid_.uv(i, j);
-      tex_m_[tex_grid_.index(i, j)] = static_cast<float>(texture.modulation(uv));
+      // Skin moved by d: the point seen at uv came from uv − d(uv).
+      tex_m_[tex_grid_.index(i, j)] = static_cast<float>(texture.modulation(texture_shift ? Vec2(uv - texture_shift->at(uv)) : uv));
       const float s = drive.sample(uv);
       tex_b_[tex_grid_.index(i, j)] = static_cast<float>(steady_blood_loss(skin_, std::isfinite(s) ? s : 0.0));
     }

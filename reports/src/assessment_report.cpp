@@ -94,6 +94,19 @@ json baseline_geometry_json(const BaselineGeometryReport& b) {
   return j;
 }
 
+json phase_registration_json(const PhaseRegistration& r) {
+  if (!r.applied) return nullptr;
+  return {{"method", "dense flow (DIS) on high-passed ln R - ratio ln G on the chart, texture-weighted Gaussian regularisation"},
+          {"displacement_npy", "displacement.npy"},
+          {"magnitude_mm", {{"median", num(r.median_mm)}, {"p95", num(r.p95_mm)}, {"max", num(r.max_mm)}}},
+          {"texture_match_before", num(r.match_before)},
+          {"texture_match_after", num(r.match_after)},
+          {"weak_texture_fraction", num(r.weak_texture_fraction)},
+          {"texels", r.texels},
+          {"unsure", !r.warnings.empty()},
+          {"time_ms", num(r.ms)}};
+}
+
 /// Colour range of the signal: 0 to its 99th percentile over the seen texels (at least 5 σ).
 std::pair<double, double> signal_range(const BlanchingSignal& signal) {
   std::vector<float> v;
@@ -250,6 +263,7 @@ json assessment_report_json(const Assessment& a, const AssessmentScene& scene, c
                   {"vertices_csv", "vertices.csv"},
                   {"heatmap_ply", "heatmap.ply"}};
   if (a.calibrated) outputs["heatmap_signal_glb"] = "heatmap_signal.glb";
+  if (a.phase_registration.applied) outputs["displacement_npy"] = "displacement.npy";
   if (a.time.present) {
     outputs["timeline_csv"] = "timeline.csv";
     outputs["timeline_time_npy"] = "timeline_time_s.npy";
@@ -303,6 +317,7 @@ json assessment_report_json(const Assessment& a, const AssessmentScene& scene, c
       {"captures", {{"baseline", phase_json(a.baseline)}, {"worn", phase_json(a.worn)}, {"split", split}}},
       {"glare", glare_json(a.glare, cov)},
       {"baseline_geometry", baseline_geometry_json(a.baseline_geometry)},
+      {"phase_registration", phase_registration_json(a.phase_registration)},
       {"signal",
        {{"feature", "log_green_ratio"},
         {"reference", a.signal.reference},
@@ -400,6 +415,15 @@ std::vector<std::string> write_assessment_outputs(const Assessment& a, const Ass
   written.push_back("pressure.npy");
   written.push_back("pressure_sigma.npy");
   written.push_back("signal.npy");
+  if (a.phase_registration.applied) {
+    // The skin's displacement from the not-worn to the worn capture: H x W x 2 (u, v) chart mm, NaN unseen.
+    const ChartGrid& g = a.phase_registration.dx_mm.grid;
+    npy::write_float32(folder / "displacement.npy", {std::size_t(g.height), std::size_t(g.width), 2}, [&](std::size_t row, float* out) {
+      for (int i = 0; i < g.width; ++i)
+        out[2 * i] = a.phase_registration.dx_mm.value[row * g.width + i], out[2 * i + 1] = a.phase_registration.dy_mm.value[row * g.width + i];
+    });
+    written.push_back("displacement.npy");
+  }
   if (a.raster.grid.size() == a.signal.y.grid.size() && a.raster.point.size() == a.raster.grid.size()) {
     // Where each texel lies on the part (part frame, mm): profiles and plots in the part's own coordinates.
     const ChartGrid& g = a.raster.grid;

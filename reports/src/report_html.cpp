@@ -517,6 +517,13 @@ std::string captures_table(const json& report) {
   }
   s += "</tbody></table>";
   if (const json& split = at(caps, "split"); !split.is_null()) s += "<p>Phases split from one capture: " + text(split) + "</p>";
+  if (const json& reg = at(report, "phase_registration"); reg.is_object()) {
+    const json& m = at(reg, "magnitude_mm");
+    s += "<p id=\"phase-registration\">Skin displacement between the phases (registered on the chart, displacement.npy): median " +
+         num(at(m, "median"), 3) + " mm, 95th percentile " + num(at(m, "p95"), 3) + " mm, max " + num(at(m, "max"), 3) +
+         " mm; texture correlation " + num(at(reg, "texture_match_before"), 2) + " before, " + num(at(reg, "texture_match_after"), 2) +
+         " after" + (at(reg, "unsure") == json(true) ? " <strong>(unsure: see the warnings)</strong>" : "") + ".</p>";
+  }
   return s;
 }
 

@@ -311,6 +311,14 @@ struct GlareSection {
   void validate() const;
 };
 
+/// `assess.phase_registration:` skin that slid or bulged between the phases
+/// (fit/phase_registration.hpp); its defaults and rules are PhaseRegistrationOptions'.
+struct PhaseRegistrationSection {
+  PhaseRegistrationOptions options;
+  void bind(SceneFields& f);
+  void validate() const;
+};
+
 /// `assess.timeseries`: the worn phase over time (fit/timeseries.hpp).
 struct TimeSeriesSection {
   TimeSeriesOptions options;
@@ -320,6 +328,7 @@ struct TimeSeriesSection {
 
 struct AssessSection {
   GlareSection glare;
+  PhaseRegistrationSection phase_registration;
   TimeSeriesSection timeseries;
   bool normalise_exposure = AssessmentOptions{}.normalise_gains;  ///< per-chunk exposure / white-balance / flicker gains
   double smoothing_mm = BlanchingOptions{}.smoothing_mm;
@@ -350,6 +359,7 @@ struct SimulationSection {
   std::optional<sim::PressOptions> presses;
   sim::BaselineGeometry baseline;  ///< how the not-worn capture is rendered (default: held 1 mm off the skin)
   sim::PhotometricEffects photometric;  ///< glare, exposure steps and drifts, flicker drift (cli/simulate_photometric.cpp)
+  sim::SkinMotion skin_motion;          ///< skin sliding and bulging between the phases (simulation.skin_motion)
   void read(const YAML::Node& node, const SceneReader& reader);
   void validate() const;
 };

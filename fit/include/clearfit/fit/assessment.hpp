@@ -11,6 +11,7 @@
 #include <clearfit/fit/capture.hpp>
 #include <clearfit/fit/glare.hpp>
 #include <clearfit/fit/hotspots.hpp>
+#include <clearfit/fit/phase_registration.hpp>
 #include <clearfit/fit/pressure_model.hpp>
 #include <clearfit/fit/timeseries.hpp>
 #include <clearfit/refraction/inverse_map.hpp>
@@ -38,6 +39,7 @@ struct AssessmentOptions {
   GlareOptions glare;                ///< specular highlights masked out of the signal (glare.hpp)
   bool normalise_gains = true;       ///< divide each chunk by its exposure / white-balance / flicker gain (photometric.hpp)
   GapSearchOptions gap;              ///< estimating the not-worn capture's gap (baseline_gap.hpp)
+  PhaseRegistrationOptions phase_registration;  ///< skin that slid or bulged between the phases (phase_registration.hpp)
   std::vector<double> thresholds_kpa{4.3, 5.5};  ///< capillary closing, the study's blanching onset
   /// Without a calibration: thresholds on the signal y, in multiples of the
   /// noise (default 5 σ) unless given as values.
@@ -115,6 +117,7 @@ struct Assessment {
   Coverage coverage;
   GlareMask glare;                           ///< the glare mask in the camera image (roi of the captures)
   std::vector<std::uint8_t> glare_texels;    ///< per chart texel: 1 = masked as glare
+  PhaseRegistration phase_registration;      ///< the skin's displacement between the phases (applied = false when off)
   TimeAnalysis time;                         ///< the worn phase over time (timeseries.hpp); present = false when off
   std::vector<std::string> warnings;
   double read_ms = 0, work_ms = 0, total_ms = 0;

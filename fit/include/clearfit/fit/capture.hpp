@@ -43,6 +43,7 @@ struct CaptureReadOptions {
   int chunk_frames = 5;           ///< frames per stored partial sum
   bool register_motion = true;    ///< measure and compensate motion
   bool colour = true;             ///< also sum linear blue at half resolution (photometric.hpp), for the glare mask
+  bool red = false;               ///< also sum linear red (full resolution, photometric.hpp), for registering the phases
   RegistrationOptions registration;  ///< how motion is measured (registration.hpp)
   cv::Mat seen;                   ///< CV_8U, roi size: the pixels that see the skin, where registration patches go; empty: all
   double max_motion_px = 10.0;    ///< motion beyond this anywhere in the roi (against the reference) is refused
@@ -88,6 +89,7 @@ struct CaptureSums {
   int released_chunks = 0;             ///< chunks [0, released_chunks) had their sums released (keep_last_frames)
   bool sums_dropped = false;           ///< the sums outgrew max_sums_mb and were released: read again with keep_windows
   std::vector<cv::Mat> chunk_blue;     ///< CV_32F (half_grid of the roi) sums of linear blue, aligned (empty without `colour`)
+  std::vector<cv::Mat> chunk_red;      ///< CV_32F (roi size) sums of linear red, aligned (empty without `red`)
   std::vector<Vec2> shift_px;          ///< per frame: content displacement against the reference at the roi's centre, px
   std::vector<Similarity> motion;      ///< per frame: the whole measured motion (rotation and scale too; identity unregistered)
   std::vector<int> patches_used;       ///< per frame: registration patches kept by the robust fit (0 unregistered)
@@ -125,7 +127,8 @@ struct PhaseAverage {
   double saturated_fraction = 0; ///< mean over the window
   double mean_code = 0;          ///< mean 8-bit green code over the roi
   cv::Mat blue_half;             ///< CV_32F (half_grid of the roi): mean linear blue, gain-normalised; empty without colour
-  /// Per-chunk gains (photometric.hpp) divided out of `mean`, `variance` and `blue_half`:
+  cv::Mat red;                   ///< CV_32F (roi size): mean linear red, gain-normalised; empty without CaptureReadOptions::red
+  /// Per-chunk gains (photometric.hpp) divided out of `mean`, `variance`, `blue_half` and `red`:
   /// their extremes and the typical uncertainty of one chunk's gain.
   double gain_min = 1, gain_max = 1, gain_sigma = 0;
 };

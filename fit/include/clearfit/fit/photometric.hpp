@@ -31,6 +31,11 @@ cv::Size half_grid(cv::Size roi);
 /// the frame at p + d, clamped at the image edge) to `sum` (CV_32F, half_grid).
 void accumulate_half_blue(const cv::Mat& bgr, const cv::Rect& roi, cv::Point d, cv::Mat& sum);
 
+/// Adds the frame's linear red at integer shift d, at full resolution, to `sum`
+/// (CV_32F, roi size): the texture the phases are registered on
+/// (phase_registration.hpp; at half resolution its finest lines alias).
+void accumulate_red(const cv::Mat& bgr, const cv::Rect& roi, cv::Point d, cv::Mat& sum);
+
 /// Per-chunk gains of a window (see the file comment).
 struct ChunkGains {
   std::vector<double> gain;   ///< per chunk of the window, relative to the window's mean

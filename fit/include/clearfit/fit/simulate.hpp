@@ -154,6 +154,34 @@ struct BaselineGeometry {
   void validate() const;
 };
 
+/// Skin that slides and bulges between the phases (issue 12, item 2): the worn
+/// frames show the skin's texture (ridges, mottling) displaced on the chart by
+/// a smooth field, while the blanching stays where the part presses:
+///   d(uv) = slide_mm + bulge_mm · (−∇P̃(uv)) / max|∇P̃|,
+/// P̃ the true pressure blurred by a Gaussian of bulge_width_mm, so the skin
+/// bulges outward around each pressed place, most at its steepest rim
+/// (bulge_mm at the strongest place's, proportionally less at weaker ones).
+/// The baseline frames show the skin undisplaced. Off (zero) by default.
+struct SkinMotion {
+  Vec2 slide_mm = Vec2::Zero();
+  double bulge_mm = 0;
+  double bulge_width_mm = 1.0;
+  bool any() const { return slide_mm.squaredNorm() > 0 || bulge_mm != 0; }
+  /// Throws std::invalid_argument naming the field, its value and the rule.
+  void validate() const;
+};
+
+/// The displacement of the worn skin on the chart (mm), on the pressure's grid.
+struct SkinDisplacement {
+  ChartField dx_mm, dy_mm;
+  /// At chart uv: bilinear inside the grid, the nearest edge texel's value beyond it.
+  Vec2 at(const Vec2& uv_mm) const;
+};
+/// d(uv) above from the true pressure (kPa, NaN off the contact surface: 0).
+SkinDisplacement skin_displacement(const SkinMotion& motion, const ChartField& pressure_kpa);
+/// truth_displacement.npy: float32 H x W x 2 (u, v in mm) on the pressure's chart grid. Atomic.
+void write_displacement_npy(const SkinDisplacement& d, const std::filesystem::path& path);
+
 struct Timeline {
   double fps = 60;
   double baseline_s = 4;  ///< not pressed
@@ -195,9 +223,11 @@ struct FrameMotion {
 class CaptureRenderer {
  public:
   /// `map` must carry chart_uv and transmittance (traced with a chart); `drive`
-  /// is skin_drive() of the pressure on the chart grid.
+  /// is skin_drive() of the pressure on the chart grid. `texture_shift`
+  /// (optional): the skin's texture is read displaced by it (SkinMotion),
+  /// the blanching is not.
   CaptureRenderer(const RefractionMap& map, const ChartField& drive, const SkinParameters& skin,
-                  const CameraSettings& camera, std::uint64_t seed);
+                  const CameraSettings& camera, std::uint64_t seed, const SkinDisplacement* texture_shift = nullptr);
   CaptureRenderer(const CaptureRenderer&) = delete;
   CaptureRenderer& operator=(const CaptureRenderer&) = delete;
 
