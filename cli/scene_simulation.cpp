@@ -123,6 +123,7 @@ class SimulationParser {
         else r_.fail(b["part"], "simulation.baseline.part", "expected held, absent or touching, got '" + *v + "'");
       }
       num(b, "gap_mm", "simulation.baseline.gap_mm", o.baseline.gap_mm, 0, 20);
+    }
     if (const YAML::Node m = s["skin_motion"]) {
       r_.only_keys(m, "simulation.skin_motion", {"slide_mm", "bulge_mm", "bulge_width_mm"});
       if (m["slide_mm"]) o.skin_motion.slide_mm = vec2(m["slide_mm"], "simulation.skin_motion.slide_mm");

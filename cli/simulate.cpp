@@ -66,6 +66,11 @@ void record_preset(const std::filesystem::path& truth_file, const SimulationSect
                  {"glare", glare},
                  {"exposure", {{"steps", steps}, {"drift_per_s", fx.drift_per_s}}},
                  {"note", "the strengths rendered: the preset's, replaced by the keys the scene gives"}};
+  const sim::SkinMotion& m = spec.skin_motion;
+  if (m.any())
+    t["skin_motion"] = {{"slide_mm", {m.slide_mm.x(), m.slide_mm.y()}}, {"bulge_mm", m.bulge_mm}, {"bulge_width_mm", m.bulge_width_mm},
+                        {"displacement_npy", "truth_displacement.npy"},
+                        {"note", "the worn frames' skin texture displaced on the chart by d (mm, u v), the baseline's and the blanching not"}};
   write_file_atomically(truth_file, t.dump(2) + "\n");
 }
 
