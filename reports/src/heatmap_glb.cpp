@@ -191,124 +191,118 @@ void HeatmapInput::validate() const {
   Colormap::get(colormap);
 }
 
-void write_heatmap_glb(const HeatmapInput& input, const std::filesystem::path& path) {
-  input.validate();
+namespace {
+
+/// The glb's vertex streams: contact faces' corners apart from the rest (a vertex on both is split),
+/// coloured, with chart texture coordinates, _SEEN and the scalars.
+struct VertexStreams {
+  std::vector<float> position, normal, colour, texcoord, seen;
+  std::vector<std::vector<float>> scalars;
+  std::vector<std::uint32_t> contact_idx, rest_idx;
+  std::size_t count() const { return position.size() / 3; }
+};
+
+/// Texture coordinates map chart uv (mm) onto the texel grid's extent (or the chart's bounds): origin and extent.
+std::pair<Vec2, Vec2> texcoord_frame(const HeatmapInput& input) {
+  if (input.texture) {
+    const ChartGrid& g = input.texture->grid;
+    return {g.uv_origin - Vec2::Constant(0.5 * g.texel_mm), g.texel_mm * Vec2(g.width, g.height)};
+  }
+  if (input.chart) return {input.chart->uv_min, (input.chart->uv_max - input.chart->uv_min).cwiseMax(Vec2::Constant(1e-12))};
+  return {Vec2::Zero(), Vec2::Ones()};
+}
+
+VertexStreams vertex_streams(const HeatmapInput& input, const Colormap& cm) {
   const Mesh& mesh = *input.mesh;
-  const Colormap& cm = Colormap::get(input.colormap);
   CornerNormals computed;
   if (input.normals == nullptr) computed = compute_corner_normals(mesh);
   const CornerNormals& normals = input.normals ? *input.normals : computed;
-
   // Which faces are contact faces (those the chart covers).
   std::vector<char> contact(mesh.faces.size(), input.chart == nullptr ? 1 : 0);
   if (input.chart) {
     for (int f : input.chart->faces) contact.at(f) = 1;
   }
-
+  VertexStreams out;
   VertexSet vs(mesh.num_vertices());
-  std::vector<std::uint32_t> contact_idx, rest_idx;
   for (int f = 0; f < mesh.num_faces(); ++f) {
     Vec3 fn = mesh.face_normal(f);
     for (int k = 0; k < 3; ++k) {
       std::uint32_t i = vs.get(mesh.faces[f][k], contact[f], unit_normal(normals.corner[f][k], fn));
-      (contact[f] ? contact_idx : rest_idx).push_back(i);
+      (contact[f] ? out.contact_idx : out.rest_idx).push_back(i);
     }
   }
-
-  // Texture coordinates map chart uv (mm) onto the texel grid's extent (or the chart's bounds).
-  Vec2 uv0 = Vec2::Zero(), uv_extent = Vec2::Ones();
-  if (input.texture) {
-    const ChartGrid& g = input.texture->grid;
-    uv0 = g.uv_origin - Vec2::Constant(0.5 * g.texel_mm);
-    uv_extent = g.texel_mm * Vec2(g.width, g.height);
-  } else if (input.chart) {
-    uv0 = input.chart->uv_min;
-    uv_extent = (input.chart->uv_max - input.chart->uv_min).cwiseMax(Vec2::Constant(1e-12));
-  }
-
+  const auto [uv0, uv_extent] = texcoord_frame(input);
   const std::size_t n_out = vs.source.size();
-  std::vector<float> position, normal, colour, texcoord, seen_attr;
-  std::vector<std::vector<float>> scalar_attr(input.scalars.size());
-  position.reserve(3 * n_out);
+  out.scalars.resize(input.scalars.size());
+  out.position.reserve(3 * n_out);
   const Eigen::Vector3f grey = cm.no_data_linear();
   for (std::size_t o = 0; o < n_out; ++o) {
     const int v = vs.source[o];
     const bool on_contact = vs.region[o] != 0;
     const float value = input.values[v];
     const bool seen = on_contact && (input.seen.empty() ? std::isfinite(value) : input.seen[v] != 0);
-    for (int c = 0; c < 3; ++c) position.push_back(static_cast<float>(mesh.vertices[v][c]));
-    for (int c = 0; c < 3; ++c) normal.push_back(vs.normal[o][c]);
-    Eigen::Vector3f rgb = seen && std::isfinite(value)
-                              ? cm.linear(normalise_to_range(value, input.range_lo, input.range_hi))
-                              : grey;
-    for (int c = 0; c < 3; ++c) colour.push_back(rgb[c]);
+    for (int c = 0; c < 3; ++c) out.position.push_back(static_cast<float>(mesh.vertices[v][c]));
+    for (int c = 0; c < 3; ++c) out.normal.push_back(vs.normal[o][c]);
+    Eigen::Vector3f rgb = seen && std::isfinite(value) ? cm.linear(normalise_to_range(value, input.range_lo, input.range_hi)) : grey;
+    for (int c = 0; c < 3; ++c) out.colour.push_back(rgb[c]);
     Vec2 uv = Vec2::Zero();
-    if (input.chart && on_contact && input.chart->uv[v].allFinite()) {
-      uv = (input.chart->uv[v] - uv0).cwiseQuotient(uv_extent);
-    }
-    texcoord.push_back(static_cast<float>(uv[0]));
-    texcoord.push_back(static_cast<float>(uv[1]));
-    seen_attr.push_back(seen ? 1.0f : 0.0f);
+    if (input.chart && on_contact && input.chart->uv[v].allFinite()) uv = (input.chart->uv[v] - uv0).cwiseQuotient(uv_extent);
+    out.texcoord.push_back(static_cast<float>(uv[0]));
+    out.texcoord.push_back(static_cast<float>(uv[1]));
+    out.seen.push_back(seen ? 1.0f : 0.0f);
     for (std::size_t s = 0; s < input.scalars.size(); ++s) {
       float x = input.scalars[s].values[v];
-      scalar_attr[s].push_back(seen && std::isfinite(x) ? x : 0.0f);
+      out.scalars[s].push_back(seen && std::isfinite(x) ? x : 0.0f);
     }
   }
+  return out;
+}
 
-  tinygltf::Model model;
-  model.asset.version = "2.0";
-  model.asset.generator = "clearfit";
-  model.buffers.resize(1);
-  BufferBuilder b{model};
+/// The chart texture (PNG in the buffer, linear sampler, clamped); returns its index.
+int add_chart_texture(tinygltf::Model& model, BufferBuilder& b, const HeatmapInput& input, const Colormap& cm) {
+  std::vector<unsigned char> png = texture_png(*input.texture, cm, input.range_lo, input.range_hi);
+  tinygltf::Image image;
+  image.name = input.quantity;
+  image.mimeType = "image/png";
+  image.bufferView = b.add_view(png.data(), png.size(), 0, "texture.png");
+  model.images.push_back(std::move(image));
+  tinygltf::Sampler sampler;
+  sampler.magFilter = TINYGLTF_TEXTURE_FILTER_LINEAR;
+  sampler.minFilter = TINYGLTF_TEXTURE_FILTER_LINEAR;
+  sampler.wrapS = sampler.wrapT = TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE;
+  model.samplers.push_back(sampler);
+  tinygltf::Texture texture;
+  texture.source = static_cast<int>(model.images.size()) - 1;
+  texture.sampler = static_cast<int>(model.samplers.size()) - 1;
+  model.textures.push_back(texture);
+  return static_cast<int>(model.textures.size()) - 1;
+}
+
+/// Meshes: "heatmap_vertex_colors" (mesh 0) and, with a texture, "heatmap_texture" (mesh 1).
+void add_heatmap_meshes(tinygltf::Model& model, BufferBuilder& b, const HeatmapInput& input, const VertexStreams& v) {
   std::map<std::string, int> attributes;
-  if (n_out > 0) {
-    attributes["POSITION"] = b.add_floats(position, 3, "POSITION");
-    attributes["NORMAL"] = b.add_floats(normal, 3, "NORMAL");
-    if (input.chart) attributes["TEXCOORD_0"] = b.add_floats(texcoord, 2, "TEXCOORD_0");
-    attributes["_SEEN"] = b.add_floats(seen_attr, 1, "_SEEN");
+  if (v.count() > 0) {
+    attributes["POSITION"] = b.add_floats(v.position, 3, "POSITION");
+    attributes["NORMAL"] = b.add_floats(v.normal, 3, "NORMAL");
+    if (input.chart) attributes["TEXCOORD_0"] = b.add_floats(v.texcoord, 2, "TEXCOORD_0");
+    attributes["_SEEN"] = b.add_floats(v.seen, 1, "_SEEN");
     for (std::size_t s = 0; s < input.scalars.size(); ++s) {
-      attributes[input.scalars[s].name] = b.add_floats(scalar_attr[s], 1, input.scalars[s].name);
+      attributes[input.scalars[s].name] = b.add_floats(v.scalars[s], 1, input.scalars[s].name);
     }
   }
-  const int colour_accessor = n_out > 0 ? b.add_floats(colour, 3, "COLOR_0") : -1;
-
-  int texture_index = -1;
-  if (input.texture) {
-    std::vector<unsigned char> png = texture_png(*input.texture, cm, input.range_lo, input.range_hi);
-    tinygltf::Image image;
-    image.name = input.quantity;
-    image.mimeType = "image/png";
-    image.bufferView = b.add_view(png.data(), png.size(), 0, "texture.png");
-    model.images.push_back(std::move(image));
-    tinygltf::Sampler sampler;
-    sampler.magFilter = TINYGLTF_TEXTURE_FILTER_LINEAR;
-    sampler.minFilter = TINYGLTF_TEXTURE_FILTER_LINEAR;
-    sampler.wrapS = sampler.wrapT = TINYGLTF_TEXTURE_WRAP_CLAMP_TO_EDGE;
-    model.samplers.push_back(sampler);
-    tinygltf::Texture texture;
-    texture.source = 0;
-    texture.sampler = 0;
-    model.textures.push_back(texture);
-    texture_index = 0;
-  }
-  model.materials.push_back(unlit_material("vertex_colors", -1));
-  if (input.texture) model.materials.push_back(unlit_material("texture", texture_index));
-  model.extensionsUsed.push_back(kUnlit);
-
-  auto primitive = [&](const std::vector<std::uint32_t>& idx, const std::string& name, bool with_colour,
-                       int material) {
+  const int colour_accessor = v.count() > 0 ? b.add_floats(v.colour, 3, "COLOR_0") : -1;
+  auto primitive = [&](const std::vector<std::uint32_t>& idx, const std::string& name, int material) {
     tinygltf::Primitive p;
     p.mode = TINYGLTF_MODE_TRIANGLES;
     p.indices = b.add_indices(idx, name);
     p.attributes = attributes;
-    if (with_colour) p.attributes["COLOR_0"] = colour_accessor;
+    p.attributes["COLOR_0"] = colour_accessor;
     p.material = material;
     return p;
   };
-  // Meshes: "heatmap_vertex_colors" and, with a texture, "heatmap_texture".
   std::vector<tinygltf::Primitive> rest, coloured_contact;
-  if (!rest_idx.empty()) rest.push_back(primitive(rest_idx, "rest", true, 0));
-  if (!contact_idx.empty()) coloured_contact.push_back(primitive(contact_idx, "contact", true, 0));
+  if (!v.rest_idx.empty()) rest.push_back(primitive(v.rest_idx, "rest", 0));
+  if (!v.contact_idx.empty()) coloured_contact.push_back(primitive(v.contact_idx, "contact", 0));
   tinygltf::Mesh vertex_mesh;
   vertex_mesh.name = "heatmap_vertex_colors";
   vertex_mesh.primitives = coloured_contact;
@@ -327,7 +321,11 @@ void write_heatmap_glb(const HeatmapInput& input, const std::filesystem::path& p
     textured.primitives.insert(textured.primitives.end(), rest.begin(), rest.end());
     model.meshes.push_back(textured);
   }
+}
 
+/// The scenes ("texture" first when there is one, then "vertex_colors"), each the part in metres
+/// plus the hotspot markers; returns the scene index by name.
+nlohmann::json add_scenes(tinygltf::Model& model, const HeatmapInput& input) {
   const std::vector<double> scale(3, kMetresPerMm);
   auto add_node = [&](tinygltf::Node node) {
     model.nodes.push_back(std::move(node));
@@ -366,7 +364,29 @@ void write_heatmap_glb(const HeatmapInput& input, const std::filesystem::path& p
   scenes["vertex_colors"] = static_cast<int>(model.scenes.size());
   add_scene("vertex_colors", 0);
   model.defaultScene = 0;
+  return scenes;
+}
 
+}  // namespace
+
+void write_heatmap_glb(const HeatmapInput& input, const std::filesystem::path& path) {
+  input.validate();
+  const Colormap& cm = Colormap::get(input.colormap);
+  const VertexStreams streams = vertex_streams(input, cm);
+
+  tinygltf::Model model;
+  model.asset.version = "2.0";
+  model.asset.generator = "clearfit";
+  model.buffers.resize(1);
+  BufferBuilder b{model};
+  const int texture_index = input.texture ? add_chart_texture(model, b, input, cm) : -1;
+  model.materials.push_back(unlit_material("vertex_colors", -1));
+  if (input.texture) model.materials.push_back(unlit_material("texture", texture_index));
+  model.extensionsUsed.push_back(kUnlit);
+  add_heatmap_meshes(model, b, input, streams);
+  const nlohmann::json scenes = add_scenes(model, input);
+
+  const Eigen::Vector3f grey = cm.no_data_linear();
   nlohmann::json info = input.extras;
   info["schema"] = "clearfit.heatmap/1";
   info["quantity"] = input.quantity;
