@@ -323,21 +323,21 @@ void place_worn_window(const CaptureSums& sums, const PhaseAverage& base, PhaseA
   for (int f = worn.window.first; f < worn.window.first + worn.window.count; ++f) mean += sums.shift_px[f];
   if (mean.allFinite()) worn.residual_shift_px -= mean / worn.window.count;
 }
-}  // namespace
+/// What reading the captures hands on to the later stages: the two phases' window averages, the
+/// worn capture's last frame (and its content's displacement against the reference frame), and the
+/// phases over time when the timeline is on.
+struct Phases {
+  PhaseAverage base_avg, worn_avg;
+  cv::Mat worn_frame;
+  Vec2 worn_frame_shift = Vec2::Zero();
+  std::optional<TimeSeriesRecorder> base_series, worn_series;  // the worn phase over time (timeseries.hpp)
+};
 
-Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& captures,
-                           const std::optional<PressureCalibration>& calibration, const AssessmentOptions& o) {
-  if (!scene.mesh || !scene.contact || !scene.chart || !scene.camera || !scene.forward || !scene.inverse)
-    throw std::invalid_argument("assess_captures: the scene is incomplete");
-  if (o.window_frames < 1) throw InputError("", "captures.window_frames", "must be at least 1");
-  const auto t0 = Clock::now();
-  Assessment a;
+/// The options both phases are read with: the roi that sees the skin (in either geometry, with
+/// room for the motion compensated), the sums kept, the expected image size.
+CaptureReadOptions capture_read_options(const AssessmentScene& scene, bool own_geometry, const AssessmentOptions& o) {
   const RefractionMap& map = *scene.forward;
-  const InverseMap& inv = *scene.inverse;
-
   CaptureReadOptions ro;
-  const bool own_geometry = scene.baseline_part != BaselinePart::touching;
-  if (own_geometry && !scene.baseline_rays) throw std::invalid_argument("assess_captures: a held or absent baseline needs its rays");
   ro.roi = seen_roi(map, own_geometry ? scene.baseline_rays : nullptr, static_cast<int>(std::ceil(o.max_motion_px)) + 2);
   ro.chunk_frames = o.chunk_frames;
   ro.register_motion = o.compensate_motion;
@@ -347,12 +347,21 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
   ro.max_motion_px = o.max_motion_px;
   ro.expected_width = scene.camera->width;
   ro.expected_height = scene.camera->height;
+  return ro;
+}
+
+/// Stage 1: reads both phases into their window averages, from one video holding both (split at
+/// the press) or from two files (each one's last frames); fills a.baseline, a.worn, a.split and the
+/// reading times.
+void read_phases(const AssessmentScene& scene, const CaptureSources& captures, bool own_geometry, const AssessmentOptions& o,
+                 Assessment& a, Phases& p) {
+  const RefractionMap& map = *scene.forward;
+  CaptureReadOptions ro = capture_read_options(scene, own_geometry, o);
   // With its own geometry the baseline sees the skin elsewhere in the image: each phase is
   // registered to its own first frame, and the maps bring both onto the chart. With the phase
   // registration too: the skin's move between the phases is the registration's, not the camera's.
   MotionReference reference, worn_reference;
   if (o.timeseries.enabled) o.timeseries.validate();
-  std::optional<TimeSeriesRecorder> base_series, worn_series;  // the worn phase over time (timeseries.hpp)
   auto read = [&](const std::filesystem::path& path, const std::string& role, std::optional<TimeSeriesRecorder>* series) {
     ro.role = role;
     MotionReference& ref = (own_geometry || o.phase_registration.enabled) && role == "worn" ? worn_reference : reference;
@@ -370,148 +379,181 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
     return sums;
   };
 
-  PhaseAverage base_avg, worn_avg;
-  cv::Mat worn_frame;
-  Vec2 worn_frame_shift = Vec2::Zero();  // its content's displacement against the reference frame
   const bool split_mode = !captures.both.empty();
   if (split_mode) {
     // The not-worn phase's own geometry changes the view at the press (and back at the removal):
     // a registration reference per geometry (capture.hpp).
     if (own_geometry) ro.max_references = 4;
     ro.max_sums_mb = o.max_sums_mb;
-    CaptureSums sums = read(captures.both, "capture", &worn_series);
+    CaptureSums sums = read(captures.both, "capture", &p.worn_series);
     const PhaseSplit split = split_phases(sums, o.window_frames);
     if (sums.sums_dropped) {  // a long capture: read again for its two windows only (bounded memory)
       ro.max_sums_mb = 0;
       ro.keep_windows = {split.baseline, split.worn};
       sums = read(captures.both, "capture", nullptr);
     }
-    base_avg = average_window(sums, split.baseline, o.window_frames, o.normalise_gains);
-    worn_avg = average_window(sums, split.worn, o.window_frames, o.normalise_gains);
-    if (own_geometry || o.phase_registration.enabled) place_worn_window(sums, base_avg, worn_avg, o.max_motion_px);
-    a.baseline = phase_report(sums, base_avg, o.compensate_motion);
-    a.worn = phase_report(sums, worn_avg, o.compensate_motion);
+    p.base_avg = average_window(sums, split.baseline, o.window_frames, o.normalise_gains);
+    p.worn_avg = average_window(sums, split.worn, o.window_frames, o.normalise_gains);
+    if (own_geometry || o.phase_registration.enabled) place_worn_window(sums, p.base_avg, p.worn_avg, o.max_motion_px);
+    a.baseline = phase_report(sums, p.base_avg, o.compensate_motion);
+    a.worn = phase_report(sums, p.worn_avg, o.compensate_motion);
     a.split = split;
-    worn_frame = sums.last_frame;
-    if (!sums.shift_px.empty() && sums.shift_px.back().allFinite()) worn_frame_shift = sums.shift_px.back();
+    p.worn_frame = sums.last_frame;
+    if (!sums.shift_px.empty() && sums.shift_px.back().allFinite()) p.worn_frame_shift = sums.shift_px.back();
   } else {
     if (captures.baseline.empty() || captures.worn.empty())
       throw InputError("", "captures", "a phase is missing: give both 'baseline' (not worn) and 'worn', or 'both' for one video holding both",
                        "see the scene file format in README.md");
     // Each capture's window is its last frames: only those chunk sums are kept (bounded memory).
     ro.keep_last_frames = o.window_frames + 2 * o.chunk_frames;
-    const CaptureSums base = read(captures.baseline, "baseline", &base_series);
-    base_avg = average_window(base, last_frames(base, o.window_frames), o.window_frames, o.normalise_gains);
-    a.baseline = phase_report(base, base_avg, o.compensate_motion);
-    const CaptureSums worn = read(captures.worn, "worn", &worn_series);
-    worn_avg = average_window(worn, last_frames(worn, o.window_frames), o.window_frames, o.normalise_gains);
-    a.worn = phase_report(worn, worn_avg, o.compensate_motion);
-    worn_frame = worn.last_frame;
-    if (!worn.shift_px.empty() && worn.shift_px.back().allFinite()) worn_frame_shift = worn.shift_px.back();
+    const CaptureSums base = read(captures.baseline, "baseline", &p.base_series);
+    p.base_avg = average_window(base, last_frames(base, o.window_frames), o.window_frames, o.normalise_gains);
+    a.baseline = phase_report(base, p.base_avg, o.compensate_motion);
+    const CaptureSums worn = read(captures.worn, "worn", &p.worn_series);
+    p.worn_avg = average_window(worn, last_frames(worn, o.window_frames), o.window_frames, o.normalise_gains);
+    a.worn = phase_report(worn, p.worn_avg, o.compensate_motion);
+    p.worn_frame = worn.last_frame;
+    if (!worn.shift_px.empty() && worn.shift_px.back().allFinite()) p.worn_frame_shift = worn.shift_px.back();
   }
-  // The baseline's own geometry (held off the skin, or no part): its map at the given or estimated gap.
-  std::optional<RefractionMap> base_map;
-  std::optional<InverseMap> base_inv;
+}
+
+/// How the baseline is read on the chart: its own geometry's map and inverse map (held off the
+/// skin, or no part), and the inverse map displaced by the phase registration.
+struct BaselineView {
+  std::optional<RefractionMap> map;
+  std::optional<InverseMap> inverse;
+  std::optional<InverseMap> moved_inverse;
+  /// The baseline's inverse map from here on (nullptr: the worn one serves both).
+  const InverseMap* view() const { return moved_inverse ? &*moved_inverse : inverse ? &*inverse : nullptr; }
+};
+
+/// Stage 2: the baseline's own geometry (its map at the given or estimated gap) and the phase
+/// registration; fills a.baseline_geometry, a.phase_registration and their warnings.
+void register_baseline(const AssessmentScene& scene, bool own_geometry, const Phases& p, const AssessmentOptions& o, Assessment& a,
+                       BaselineView& b) {
+  const InverseMap& inv = *scene.inverse;
   if (own_geometry) {
-    base_map = baseline_geometry(scene, base_avg, worn_avg, a, o);
-    base_inv = compute_inverse_map(*base_map, scene.inverse_options, scene.contact);
+    b.map = baseline_geometry(scene, p.base_avg, p.worn_avg, a, o);
+    b.inverse = compute_inverse_map(*b.map, scene.inverse_options, scene.contact);
   }
   // Skin that slid or bulged between the phases: the baseline is read where its skin went
   // (phase_registration.hpp), from whichever inverse map reads it (its own geometry's or the worn one).
-  const InverseMap& from = base_inv ? *base_inv : inv;
-  std::optional<InverseMap> moved_inverse;
+  const InverseMap& from = b.inverse ? *b.inverse : inv;
   if (o.phase_registration.enabled) {
     if (o.progress) o.progress("registering the phases", 0, 0);
-    a.phase_registration = register_phases(base_avg, worn_avg, from, inv, {}, o.phase_registration);
+    a.phase_registration = register_phases(p.base_avg, p.worn_avg, from, inv, {}, o.phase_registration);
     for (const auto& w : a.phase_registration.warnings) a.warnings.push_back(w);
     // A field under half a texel almost everywhere is noise on still skin: the baseline is left where it is.
     if (a.phase_registration.applied && a.phase_registration.p95_mm > 0.5 * inv.texel_mm)
-      moved_inverse = displaced_inverse(from, a.phase_registration);
+      b.moved_inverse = displaced_inverse(from, a.phase_registration);
   }
-  // The baseline's inverse map from here on (nullptr: the worn one serves both).
-  const InverseMap* base_view = moved_inverse ? &*moved_inverse : base_inv ? &*base_inv : nullptr;
+}
+
+/// Stage 3: the glare mask, then the exposure (refused when it cannot be assessed), the gains, the
+/// motion and the saturation of each phase; fills a.glare and the warnings.
+void check_captures(const AssessmentScene& scene, const Phases& p, const BaselineView& b, const AssessmentOptions& o, Assessment& a) {
+  const RefractionMap& map = *scene.forward;
   // Glare first: a mostly-glare capture is refused as such, and saturated glare is not overexposure.
   // The phases are compared where they see the same skin.
-  const PhaseAverage base_for_glare = base_view ? in_worn_geometry(base_avg, map, *base_view) : base_avg;
-  a.glare = detect_glare(base_for_glare, worn_avg, seen_pixels(map, base_avg.roi), o.glare);
+  const PhaseAverage base_for_glare = b.view() ? in_worn_geometry(p.base_avg, map, *b.view()) : p.base_avg;
+  a.glare = detect_glare(base_for_glare, p.worn_avg, seen_pixels(map, p.base_avg.roi), o.glare);
   check_glare(a.glare, a.baseline, a.worn, o.glare, a.warnings);
   const double glare_of_roi = a.glare.empty() ? 0.0 : cv::countNonZero(a.glare.mask) / static_cast<double>(a.glare.mask.total());
-  check_exposure(base_avg, a.baseline.source, "baseline", o, glare_of_roi);
-  check_exposure(worn_avg, a.worn.source, "worn", o, glare_of_roi);
+  check_exposure(p.base_avg, a.baseline.source, "baseline", o, glare_of_roi);
+  check_exposure(p.worn_avg, a.worn.source, "worn", o, glare_of_roi);
   warn_gains(a.baseline, "baseline", a.warnings);
   warn_gains(a.worn, "worn", a.warnings);
-  for (const auto* p : {&a.baseline, &a.worn}) {
-    const std::string role = p == &a.baseline ? "baseline" : "worn";
-    if (p->motion_px_max > 0.5)
-      a.warnings.push_back("motion during the " + role + " capture: up to " + fmt(p->motion_px_max) + " px, compensated" +
-                           (p->jitter_px_rms > 0.2 ? " (jitter of " + fmt(p->jitter_px_rms, 2) + " px rms left as blur)" : ""));
-    if (p->rotation_scale_px_max > 0.5)
-      a.warnings.push_back("the image turned or scaled during the " + role + " capture (up to " + fmt(p->rotation_deg_max, 2) +
-                           "°): frames are aligned at the centre of the view, so up to " + fmt(p->rotation_scale_px_max, 2) +
+  for (const auto* r : {&a.baseline, &a.worn}) {
+    const std::string role = r == &a.baseline ? "baseline" : "worn";
+    if (r->motion_px_max > 0.5)
+      a.warnings.push_back("motion during the " + role + " capture: up to " + fmt(r->motion_px_max) + " px, compensated" +
+                           (r->jitter_px_rms > 0.2 ? " (jitter of " + fmt(r->jitter_px_rms, 2) + " px rms left as blur)" : ""));
+    if (r->rotation_scale_px_max > 0.5)
+      a.warnings.push_back("the image turned or scaled during the " + role + " capture (up to " + fmt(r->rotation_deg_max, 2) +
+                           "°): frames are aligned at the centre of the view, so up to " + fmt(r->rotation_scale_px_max, 2) +
                            " px of it is left as blur at its edges");
-    if (p->saturated_fraction > 0.001)
-      a.warnings.push_back(fmt(100 * p->saturated_fraction, 2) + " % of the pixels that see the skin are saturated in the " + role +
+    if (r->saturated_fraction > 0.001)
+      a.warnings.push_back(fmt(100 * r->saturated_fraction, 2) + " % of the pixels that see the skin are saturated in the " + role +
                            " capture: their blanching is underestimated");
   }
-  if (o.progress) o.progress("blanching signal", 0, 0);
+}
 
-  // Signal on the chart.
-  a.glare_texels = glare_texels(a.glare, inv, worn_avg.residual_shift_px);
+/// Stage 4: the blanching signal on the chart (glare texels excluded), the chart's raster and the
+/// signal's σ with the pose's; returns the options the signal was computed with (the later stages
+/// read its spatial noise and transmittance ratio).
+BlanchingOptions chart_signal(const AssessmentScene& scene, bool own_geometry, const Phases& p, const BaselineView& b,
+                              const AssessmentOptions& o, Assessment& a) {
+  const InverseMap& inv = *scene.inverse;
+  a.glare_texels = glare_texels(a.glare, inv, p.worn_avg.residual_shift_px);
   BlanchingOptions bo = o.blanching;
   if (!a.glare.empty()) bo.excluded = a.glare_texels;
   bo.spatial_noise = a.baseline.lossy || a.worn.lossy;
-  if (own_geometry) bo.log_transmittance_ratio = log_transmittance_ratio(map, inv, *base_map, *base_view);
-  a.signal = compute_blanching(base_avg, worn_avg, inv, bo, base_view);
+  if (own_geometry) bo.log_transmittance_ratio = log_transmittance_ratio(*scene.forward, inv, *b.map, *b.view());
+  a.signal = compute_blanching(p.base_avg, p.worn_avg, inv, bo, b.view());
   if (bo.spatial_noise) warn_lossy(a);
   for (const auto& w : a.signal.warnings) a.warnings.push_back(w);
-  const ChartGrid& g = a.signal.y.grid;
-  a.raster = rasterize_chart(*scene.mesh, *scene.chart, g);
+  a.raster = rasterize_chart(*scene.mesh, *scene.chart, a.signal.y.grid);
   if (scene.pose_covariance) a.position_sigma_mm = position_sigma(a.raster, scene.cam_from_part, *scene.pose_covariance);
   a.signal_sigma = signal_sigma(a.signal, a.position_sigma_mm);
+  return bo;
+}
 
-  // Pressure.
+/// The signal turned into pressure through the calibration: a.pressure, its σ and status per
+/// texel, and the summary figures; returns the texels beyond the calibration's range.
+std::vector<std::uint8_t> calibrated_pressure(const PressureCalibration& calibration, bool spatial_noise, const AssessmentOptions& o,
+                                              Assessment& a) {
+  const ChartGrid& g = a.signal.y.grid;
+  std::vector<std::uint8_t> saturated(g.size(), 0);
+  a.calibrated = true;
+  a.pressure = {g, std::vector<float>(g.size(), kNaN)};
+  a.pressure_sigma = {g, std::vector<float>(g.size(), kNaN)};
+  a.pressure_status.assign(g.size(), static_cast<std::uint8_t>(PressureStatus::invalid));
+  calibration.invert(a.signal.y.value, a.signal_sigma.value, a.pressure.value, a.pressure_sigma.value, a.pressure_status);
+  // Lossy captures: the calibration's detection limit is its presses' noise, not the compression's;
+  // a texel not significant against this capture's own noise (spatial term included) is below detection.
+  if (spatial_noise)
+    for (std::size_t k = 0; k < g.size(); ++k)
+      if (a.pressure_status[k] == static_cast<std::uint8_t>(PressureStatus::ok) &&
+          !(a.signal.y.value[k] >= o.signal_threshold_sigmas * a.signal.sigma_y.value[k]))
+        a.pressure_status[k] = static_cast<std::uint8_t>(PressureStatus::below_detection);
+  // Below detection is a measurement (less than the detection limit), shown and counted as 0 kPa;
+  // pressure_status keeps the flag. Unseen texels stay NaN.
+  for (std::size_t k = 0; k < g.size(); ++k)
+    if (a.pressure_status[k] == static_cast<std::uint8_t>(PressureStatus::below_detection)) a.pressure.value[k] = 0.f;
+  long long seen = 0, below = 0, sat = 0, est = 0;
+  double sum = 0;
+  for (std::size_t k = 0; k < g.size(); ++k) {
+    if (!std::isfinite(a.signal.y.value[k])) continue;
+    ++seen;
+    const auto st = static_cast<PressureStatus>(a.pressure_status[k]);
+    if (st == PressureStatus::below_detection) ++below;
+    if (st == PressureStatus::saturated) ++sat, saturated[k] = 1;
+    if (std::isfinite(a.pressure.value[k])) {
+      ++est;
+      sum += a.pressure.value[k];
+      a.peak_kpa = std::max(a.peak_kpa, static_cast<double>(a.pressure.value[k]));
+    }
+  }
+  a.below_detection_fraction = seen ? static_cast<double>(below) / seen : 0;
+  a.saturated_fraction = seen ? static_cast<double>(sat) / seen : 0;
+  a.mean_kpa = est ? sum / est : 0;
+  if (a.saturated_fraction > 0)
+    a.warnings.push_back(fmt(100 * a.saturated_fraction, 2) + " % of the seen skin is beyond the calibration's range (saturated): "
+                         "the pressure there is at least the value shown");
+  return saturated;
+}
+
+/// Stage 5: the pressure (with a calibration) and the hotspots above the thresholds, in kPa or in
+/// the signal's own significance without one; fills a.thresholds, a.hotspots and their labels.
+void pressure_and_hotspots(const AssessmentScene& scene, const std::optional<PressureCalibration>& calibration, bool spatial_noise,
+                           const AssessmentOptions& o, Assessment& a) {
+  const ChartGrid& g = a.signal.y.grid;
   HotspotOptions ho;
   ho.min_area_mm2 = o.min_hotspot_area_mm2;
   const double sigma_mm = std::max(o.blanching.smoothing_mm, 0.5 * g.texel_mm);
   ho.samples_per_mm2 = 1.0 / (4 * M_PI * sigma_mm * sigma_mm);
-  std::vector<std::uint8_t> saturated(g.size(), 0);
   if (calibration) {
-    a.calibrated = true;
-    a.pressure = {g, std::vector<float>(g.size(), kNaN)};
-    a.pressure_sigma = {g, std::vector<float>(g.size(), kNaN)};
-    a.pressure_status.assign(g.size(), static_cast<std::uint8_t>(PressureStatus::invalid));
-    calibration->invert(a.signal.y.value, a.signal_sigma.value, a.pressure.value, a.pressure_sigma.value, a.pressure_status);
-    // Lossy captures: the calibration's detection limit is its presses' noise, not the compression's;
-    // a texel not significant against this capture's own noise (spatial term included) is below detection.
-    if (bo.spatial_noise)
-      for (std::size_t k = 0; k < g.size(); ++k)
-        if (a.pressure_status[k] == static_cast<std::uint8_t>(PressureStatus::ok) &&
-            !(a.signal.y.value[k] >= o.signal_threshold_sigmas * a.signal.sigma_y.value[k]))
-          a.pressure_status[k] = static_cast<std::uint8_t>(PressureStatus::below_detection);
-    // Below detection is a measurement (less than the detection limit), shown and counted as 0 kPa;
-    // pressure_status keeps the flag. Unseen texels stay NaN.
-    for (std::size_t k = 0; k < g.size(); ++k)
-      if (a.pressure_status[k] == static_cast<std::uint8_t>(PressureStatus::below_detection)) a.pressure.value[k] = 0.f;
-    long long seen = 0, below = 0, sat = 0, est = 0;
-    double sum = 0;
-    for (std::size_t k = 0; k < g.size(); ++k) {
-      if (!std::isfinite(a.signal.y.value[k])) continue;
-      ++seen;
-      const auto st = static_cast<PressureStatus>(a.pressure_status[k]);
-      if (st == PressureStatus::below_detection) ++below;
-      if (st == PressureStatus::saturated) ++sat, saturated[k] = 1;
-      if (std::isfinite(a.pressure.value[k])) {
-        ++est;
-        sum += a.pressure.value[k];
-        a.peak_kpa = std::max(a.peak_kpa, static_cast<double>(a.pressure.value[k]));
-      }
-    }
-    a.below_detection_fraction = seen ? static_cast<double>(below) / seen : 0;
-    a.saturated_fraction = seen ? static_cast<double>(sat) / seen : 0;
-    a.mean_kpa = est ? sum / est : 0;
-    if (a.saturated_fraction > 0)
-      a.warnings.push_back(fmt(100 * a.saturated_fraction, 2) + " % of the seen skin is beyond the calibration's range (saturated): "
-                           "the pressure there is at least the value shown");
+    const std::vector<std::uint8_t> saturated = calibrated_pressure(*calibration, spatial_noise, o, a);
     const ChartField& search = a.pressure;
     a.thresholds = o.thresholds_kpa;
     ho.thresholds = a.thresholds;
@@ -529,33 +571,42 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
     if (h.touches_mask)
       a.warnings.push_back("hotspot " + std::to_string(h.id) + " touches the glare mask: it may extend under it, and its peak, area and "
                            "centroid may be larger or elsewhere than shown");
+}
 
-  if (worn_series) {
-    if (o.progress) o.progress("time series", 0, 0);
-    TimeInputs ti;
-    ti.series = &*worn_series;
-    ti.baseline = base_series ? &*base_series : nullptr;
-    ti.baseline_window = base_avg.window;
-    ti.fps = a.worn.fps;
-    if (a.split) ti.press_frame = a.split->press_frame, ti.release_frame = a.split->release_frame;
-    ti.residual_shift_px = worn_avg.residual_shift_px;
-    ti.inverse = &inv;
-    if (base_view) {
-      ti.baseline_inverse = base_view;
-      ti.baseline_residual_shift_px = base_avg.residual_shift_px;
-      if (own_geometry) ti.log_transmittance_ratio = &bo.log_transmittance_ratio;
-    }
-    ti.field = a.calibrated ? &a.pressure : &a.signal.y;
-    ti.labels = &a.hotspot_labels;
-    ti.hotspots = &a.hotspots;
-    ti.thresholds = a.thresholds;
-    std::sort(ti.thresholds.begin(), ti.thresholds.end());
-    ti.calibration = calibration ? &*calibration : nullptr;
-    a.time = analyse_time(ti, o.timeseries);
-    for (const auto& w : a.time.warnings) a.warnings.push_back(w);
+/// Stage 6: the timeline of the worn phase (timeseries.hpp), read through the same maps as the
+/// averages; fills a.time and its warnings. Only with a recorded series.
+void timeline(const AssessmentScene& scene, const std::optional<PressureCalibration>& calibration, bool own_geometry, const Phases& p,
+              const BaselineView& b, const BlanchingOptions& bo, const AssessmentOptions& o, Assessment& a) {
+  if (!p.worn_series) return;
+  if (o.progress) o.progress("time series", 0, 0);
+  TimeInputs ti;
+  ti.series = &*p.worn_series;
+  ti.baseline = p.base_series ? &*p.base_series : nullptr;
+  ti.baseline_window = p.base_avg.window;
+  ti.fps = a.worn.fps;
+  if (a.split) ti.press_frame = a.split->press_frame, ti.release_frame = a.split->release_frame;
+  ti.residual_shift_px = p.worn_avg.residual_shift_px;
+  ti.inverse = scene.inverse;
+  if (b.view()) {
+    ti.baseline_inverse = b.view();
+    ti.baseline_residual_shift_px = p.base_avg.residual_shift_px;
+    if (own_geometry) ti.log_transmittance_ratio = &bo.log_transmittance_ratio;
   }
+  ti.field = a.calibrated ? &a.pressure : &a.signal.y;
+  ti.labels = &a.hotspot_labels;
+  ti.hotspots = &a.hotspots;
+  ti.thresholds = a.thresholds;
+  std::sort(ti.thresholds.begin(), ti.thresholds.end());
+  ti.calibration = calibration ? &*calibration : nullptr;
+  a.time = analyse_time(ti, o.timeseries);
+  for (const auto& w : a.time.warnings) a.warnings.push_back(w);
+}
 
-  // Coverage of the contact surface.
+/// Coverage of the contact surface (seen, under glare, hidden behind the part or outside the view)
+/// and the values at the mesh's vertices; fills a.coverage, a.vertex_* and the coverage warning.
+void coverage_and_vertices(const AssessmentScene& scene, Assessment& a) {
+  const RefractionMap& map = *scene.forward;
+  const ChartGrid& g = a.signal.y.grid;
   Coverage& c = a.coverage;
   long long by_status[kPixelStatusCount] = {};
   for (int k = 0; k < kPixelStatusCount; ++k) by_status[k] = map.stats.by_status[k];
@@ -596,19 +647,45 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
   if (c.contact_area_mm2 > 0 && c.seen_area_mm2 < 0.5 * c.contact_area_mm2)
     a.warnings.push_back("the camera sees only " + fmt(100 * c.seen_area_mm2 / c.contact_area_mm2) +
                          " % of the contact surface through the part; the rest is not assessed");
+}
 
-  // Pictures: the worn capture as seen, and resampled onto the chart.
-  a.skin_camera = worn_frame;
+/// Pictures: the worn capture as seen (the glare mask outlined), and resampled onto the chart.
+void pictures(const AssessmentScene& scene, const Phases& p, Assessment& a) {
+  a.skin_camera = p.worn_frame;
   if (a.glare.regions > 0) {  // the glare mask outlined (magenta) where it lies in this frame
-    a.skin_camera = worn_frame.clone();
+    a.skin_camera = p.worn_frame.clone();
     std::vector<std::vector<cv::Point>> outlines;
     cv::findContours(a.glare.mask, outlines, cv::RETR_EXTERNAL, cv::CHAIN_APPROX_SIMPLE);
-    const cv::Point offset = a.glare.roi.tl() + cv::Point(static_cast<int>(std::lround(worn_frame_shift.x())),
-                                                          static_cast<int>(std::lround(worn_frame_shift.y())));
-    cv::drawContours(a.skin_camera, outlines, -1, cv::Scalar(255, 0, 255), std::max(1, worn_frame.cols / 640), cv::LINE_AA, cv::noArray(),
-                     INT_MAX, offset);
+    const cv::Point offset = a.glare.roi.tl() + cv::Point(static_cast<int>(std::lround(p.worn_frame_shift.x())),
+                                                          static_cast<int>(std::lround(p.worn_frame_shift.y())));
+    cv::drawContours(a.skin_camera, outlines, -1, cv::Scalar(255, 0, 255), std::max(1, p.worn_frame.cols / 640), cv::LINE_AA,
+                     cv::noArray(), INT_MAX, offset);
   }
-  a.skin_chart = chart_picture(worn_frame, inv, worn_avg.residual_shift_px);
+  a.skin_chart = chart_picture(p.worn_frame, *scene.inverse, p.worn_avg.residual_shift_px);
+}
+}  // namespace
+
+Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& captures,
+                           const std::optional<PressureCalibration>& calibration, const AssessmentOptions& o) {
+  if (!scene.mesh || !scene.contact || !scene.chart || !scene.camera || !scene.forward || !scene.inverse)
+    throw std::invalid_argument("assess_captures: the scene is incomplete");
+  if (o.window_frames < 1) throw InputError("", "captures.window_frames", "must be at least 1");
+  const auto t0 = Clock::now();
+  Assessment a;
+  const bool own_geometry = scene.baseline_part != BaselinePart::touching;
+  if (own_geometry && !scene.baseline_rays) throw std::invalid_argument("assess_captures: a held or absent baseline needs its rays");
+
+  Phases p;  // read in place: the time series' frame callbacks point into it
+  read_phases(scene, captures, own_geometry, o, a, p);
+  BaselineView b;
+  register_baseline(scene, own_geometry, p, o, a, b);
+  check_captures(scene, p, b, o, a);
+  if (o.progress) o.progress("blanching signal", 0, 0);
+  const BlanchingOptions bo = chart_signal(scene, own_geometry, p, b, o, a);
+  pressure_and_hotspots(scene, calibration, bo.spatial_noise, o, a);
+  timeline(scene, calibration, own_geometry, p, b, bo, o, a);
+  coverage_and_vertices(scene, a);
+  pictures(scene, p, a);
   a.total_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
   return a;
 }
