@@ -149,6 +149,105 @@ class References {
   int cur_ = 0;
 };
 
+/// The frames' linear green summed into a chunk's accumulator at their integer shifts, and the
+/// statistics read on the way (from every other row: the means over an 8×8 grid of blocks of the
+/// roi, the saturated pixels and the mean green code).
+class GreenSums {
+ public:
+  GreenSums(const cv::Rect& roi, cv::Size image)
+      : roi_(roi), image_(image), row_block_sum_(static_cast<std::size_t>(roi.height) * 8), row_saturated_(roi.height),
+        row_code_(roi.height) {}
+  /// Adds (sign +1) or removes (-1) the frame's linear green at integer shift d to `acc`; with
+  /// `stats`, also the per-row block sums, saturated pixels and green codes. `deep`: the frame's
+  /// 16-bit original (deep_frame), else empty.
+  void accumulate(const cv::Mat& frame, const cv::Mat& deep, cv::Mat& acc, cv::Point d, float sign, bool stats) {
+    if (deep.empty())
+      sum_rows<cv::Vec3b>(frame, lut8_, acc, d, sign, stats);
+    else
+      sum_rows<cv::Vec3w>(deep, srgb::to_linear_table16(), acc, d, sign, stats);
+  }
+  /// Appends the statistics of the frame last accumulated with `stats` to `sums`.
+  void append_statistics(CaptureSums& sums) const {
+    std::array<float, 64> blocks{};
+    std::array<int, 64> block_pixels{};
+    long long stat_saturated = 0, stat_code = 0;
+    for (int y = 0; y < roi_.height; y += 2) {  // the rows that carry statistics
+      stat_saturated += row_saturated_[y];
+      stat_code += row_code_[y];
+      for (int b = 0; b < 8; ++b) {
+        const int k = (y * 8 / roi_.height) * 8 + b;
+        blocks[k] += static_cast<float>(row_block_sum_[static_cast<std::size_t>(y) * 8 + b]);
+        // pixels in column block b of a row: x with x*8/w == b
+        block_pixels[k] += (roi_.width * (b + 1) + 7) / 8 - (roi_.width * b + 7) / 8;
+      }
+    }
+    const double stat_pixels = static_cast<double>((roi_.height + 1) / 2) * roi_.width;
+    for (int k = 0; k < 64; ++k) blocks[k] = block_pixels[k] > 0 ? blocks[k] / block_pixels[k] : 0.f;
+    sums.blocks.push_back(blocks);
+    sums.saturated_fraction.push_back(static_cast<float>(stat_saturated / stat_pixels));
+    sums.mean_code.push_back(static_cast<float>(stat_code / stat_pixels));
+  }
+
+ private:
+  // Pixel type Px: 8-bit codes through the 256-entry table, 16-bit through the 65536-entry one;
+  // the statistics count codes at full scale as saturated and the mean code in 8-bit units.
+  template <class Px>
+  void sum_rows(const cv::Mat& img, const float* table, cv::Mat& acc, cv::Point d, float sign, bool stats) {
+    const cv::Rect roi = roi_;
+    const int width = image_.width, height = image_.height;
+    constexpr int code_max = sizeof(typename Px::value_type) == 1 ? 255 : 65535, code_shift = code_max == 255 ? 0 : 8;
+    tbb::parallel_for(tbb::blocked_range<int>(0, roi.height, 16), [&](const tbb::blocked_range<int>& rows) {
+      for (int y = rows.begin(); y < rows.end(); ++y) {
+        // Aligned pixel (x, y) of the roi reads the frame at (x, y) + d (clamped at the image edge).
+        const int sy = std::clamp(roi.y + y + d.y, 0, height - 1);
+        const auto* src = img.ptr<Px>(sy);
+        float* dst = acc.ptr<float>(y);
+        const int lo_all = std::clamp(-(roi.x + d.x), 0, roi.width);
+        const int hi_all = std::clamp(width - (roi.x + d.x), lo_all, roi.width);
+        if (!stats || (y & 1) != 0) {  // statistics come from every other row; the sum from all
+          const float first = sign * table[src[0][1]], last = sign * table[src[width - 1][1]];
+          const Px* row = src + roi.x + d.x;
+          for (int x = 0; x < lo_all; ++x) dst[x] += first;
+          for (int x = lo_all; x < hi_all; ++x) dst[x] += sign * table[row[x][1]];
+          for (int x = hi_all; x < roi.width; ++x) dst[x] += last;
+          continue;
+        }
+        double block[8] = {};
+        int saturated = 0;
+        long long code = 0;
+        // Eight column blocks; inside each, pixels whose source lies in the image need no clamp.
+        for (int b = 0; b < 8; ++b) {
+          const int x0 = (roi.width * b + 7) / 8, x1 = (roi.width * (b + 1) + 7) / 8;  // x * 8 / width == b
+          const int lo = std::clamp(-(roi.x + d.x), x0, x1), hi = std::clamp(width - (roi.x + d.x), lo, x1);
+          float sum = 0.f;
+          auto add = [&](int x, int sx) {
+            const int g = src[sx][1];
+            const float v = table[g];
+            dst[x] += sign * v;
+            sum += v;
+            saturated += g == code_max;
+            code += g >> code_shift;
+          };
+          for (int x = x0; x < lo; ++x) add(x, 0);
+          for (int x = lo; x < hi; ++x) add(x, roi.x + d.x + x);
+          for (int x = hi; x < x1; ++x) add(x, width - 1);
+          block[b] = sum;
+        }
+        std::copy(block, block + 8, row_block_sum_.begin() + static_cast<std::ptrdiff_t>(y) * 8);
+        row_saturated_[y] = saturated;
+        row_code_[y] = code;
+      }
+    });
+  }
+
+  cv::Rect roi_;
+  cv::Size image_;
+  const float* lut8_ = srgb::to_linear_table8();
+  std::vector<double> row_block_sum_;
+  std::vector<int> row_saturated_;
+  std::vector<long long> row_code_;
+};
+
 /// A 16-bit frame (16-bit PNG/TIFF, 10-bit video) is kept as `deep` for the green sums and
 /// replaced by its 8-bit rounding for everything else; an 8-bit frame gives an empty Mat.
 cv::Mat deep_frame(cv::Mat& frame) {
@@ -202,17 +301,11 @@ void release_chunks(CaptureSums& sums, const CaptureReadOptions& o, int n, int o
   if (sums.sums_dropped && open > 0) release(open - 1);
 }
 
-}  // namespace
-
-CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadOptions& options,
-                         MotionReference& reference) {
-  if (options.chunk_frames < 1) throw std::invalid_argument("read_capture: chunk_frames must be >= 1");
-  options.registration.validate();
-  FrameReader reader(source);
+/// The sums of a capture before its first frame: its description, checked against the camera's
+/// imager, and the roi inside its image.
+CaptureSums empty_sums(const CaptureInfo& info, const std::filesystem::path& source, const CaptureReadOptions& options) {
   CaptureSums sums;
-  sums.info = reader.info();
-  const CaptureInfo& info = sums.info;
-  const std::string role = options.role.empty() ? "capture" : options.role;
+  sums.info = info;
   if (options.expected_width > 0 && (info.width != options.expected_width || info.height != options.expected_height))
     throw InputError(source.string(), "frame size",
                      std::to_string(info.width) + "x" + std::to_string(info.height) + " does not match the camera's imager " +
@@ -222,27 +315,43 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
   sums.roi = options.roi.area() > 0 ? (options.roi & image) : image;
   if (sums.roi.area() == 0) throw std::invalid_argument("read_capture: the roi lies outside the image");
   sums.chunk_frames = options.chunk_frames;
-  const cv::Rect roi = sums.roi;
+  return sums;
+}
 
+/// The shared first registration reference (made on the first read, checked on the others), or
+/// nullptr without motion registration.
+MotionRegistration* first_registration(const CaptureReadOptions& options, MotionReference& reference, cv::Size image,
+                                       const cv::Rect& roi) {
   // Registration: a grid of patches over the roi, against the first baseline frame (registration.hpp).
   if (options.register_motion) {
     if (!reference.registration)
-      reference.registration = std::make_shared<MotionRegistration>(cv::Size(info.width, info.height), roi, options.registration,
+      reference.registration = std::make_shared<MotionRegistration>(image, roi, options.registration,
                                                                    options.seen.size() == roi.size() ? options.seen : cv::Mat());
-    else if (reference.registration->roi() != roi || reference.registration->image() != cv::Size(info.width, info.height))
+    else if (reference.registration->roi() != roi || reference.registration->image() != image)
       throw std::invalid_argument("read_capture: the motion reference was taken with another roi or image size");
   }
-  MotionRegistration* const first_reference = options.register_motion ? reference.registration.get() : nullptr;
+  return options.register_motion ? reference.registration.get() : nullptr;
+}
+
+}  // namespace
+
+CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadOptions& options,
+                         MotionReference& reference) {
+  if (options.chunk_frames < 1) throw std::invalid_argument("read_capture: chunk_frames must be >= 1");
+  options.registration.validate();
+  FrameReader reader(source);
+  CaptureSums sums = empty_sums(reader.info(), source, options);
+  const CaptureInfo& info = sums.info;
+  const std::string role = options.role.empty() ? "capture" : options.role;
+  const cv::Rect roi = sums.roi;
+  MotionRegistration* const first_reference = first_registration(options, reference, cv::Size(info.width, info.height), roi);
   References refs(first_reference, options, cv::Size(info.width, info.height), roi);
   const Vec2 roi_centre(roi.x + 0.5 * roi.width, roi.y + 0.5 * roi.height);
-  const float* lut = srgb::to_linear_table8();
   FrameQueue queue(reader);
   cv::Mat frame;
   std::string name;
   int n = 0;
-  std::vector<double> row_block_sum(static_cast<std::size_t>(roi.height) * 8);
-  std::vector<int> row_saturated(roi.height);
-  std::vector<long long> row_code(roi.height);
+  GreenSums green(roi, cv::Size(info.width, info.height));
   for (;;) {
     const auto t_wait = Clock::now();
     if (!queue.pop(frame, name)) break;
@@ -282,62 +391,7 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
       release_chunks(sums, options, n, chunk);
     }
     cv::Mat& acc = sums.chunk_sum[chunk];
-    // Adds (sign +1) or removes (-1) the frame's linear green at integer shift d; with
-    // `stats`, also the per-row block sums, saturated pixels and green codes.
-    // Pixel type Px: 8-bit codes through the 256-entry table, 16-bit through the 65536-entry one;
-    // the statistics count codes at full scale as saturated and the mean code in 8-bit units.
-    auto accumulate_typed = [&](auto px_type, const cv::Mat& img, const float* table, cv::Point d, float sign, bool stats) {
-    using Px = typename decltype(px_type)::type;
-    constexpr int code_max = sizeof(typename Px::value_type) == 1 ? 255 : 65535, code_shift = code_max == 255 ? 0 : 8;
-    tbb::parallel_for(tbb::blocked_range<int>(0, roi.height, 16), [&](const tbb::blocked_range<int>& rows) {
-      for (int y = rows.begin(); y < rows.end(); ++y) {
-        // Aligned pixel (x, y) of the roi reads the frame at (x, y) + d (clamped at the image edge).
-        const int sy = std::clamp(roi.y + y + d.y, 0, info.height - 1);
-        const auto* src = img.ptr<Px>(sy);
-        float* dst = acc.ptr<float>(y);
-        const int lo_all = std::clamp(-(roi.x + d.x), 0, roi.width);
-        const int hi_all = std::clamp(info.width - (roi.x + d.x), lo_all, roi.width);
-        if (!stats || (y & 1) != 0) {  // statistics come from every other row; the sum from all
-          const float first = sign * table[src[0][1]], last = sign * table[src[info.width - 1][1]];
-          const Px* row = src + roi.x + d.x;
-          for (int x = 0; x < lo_all; ++x) dst[x] += first;
-          for (int x = lo_all; x < hi_all; ++x) dst[x] += sign * table[row[x][1]];
-          for (int x = hi_all; x < roi.width; ++x) dst[x] += last;
-          continue;
-        }
-        double block[8] = {};
-        int saturated = 0;
-        long long code = 0;
-        // Eight column blocks; inside each, pixels whose source lies in the image need no clamp.
-        for (int b = 0; b < 8; ++b) {
-          const int x0 = (roi.width * b + 7) / 8, x1 = (roi.width * (b + 1) + 7) / 8;  // x * 8 / width == b
-          const int lo = std::clamp(-(roi.x + d.x), x0, x1), hi = std::clamp(info.width - (roi.x + d.x), lo, x1);
-          float sum = 0.f;
-          auto add = [&](int x, int sx) {
-            const int g = src[sx][1];
-            const float v = table[g];
-            dst[x] += sign * v;
-            sum += v;
-            saturated += g == code_max;
-            code += g >> code_shift;
-          };
-          for (int x = x0; x < lo; ++x) add(x, 0);
-          for (int x = lo; x < hi; ++x) add(x, roi.x + d.x + x);
-          for (int x = hi; x < x1; ++x) add(x, info.width - 1);
-          block[b] = sum;
-        }
-        std::copy(block, block + 8, row_block_sum.begin() + static_cast<std::ptrdiff_t>(y) * 8);
-        row_saturated[y] = saturated;
-        row_code[y] = code;
-      }
-    });
-    };
-    auto accumulate = [&](cv::Point d, float sign, bool stats) {
-      if (deep.empty())
-        accumulate_typed(std::type_identity<cv::Vec3b>(), frame, lut, d, sign, stats);
-      else
-        accumulate_typed(std::type_identity<cv::Vec3w>(), deep, srgb::to_linear_table16(), d, sign, stats);
-    };
+    auto accumulate = [&](cv::Point d, float sign, bool stats) { green.accumulate(frame, deep, acc, d, sign, stats); };
     accumulate(d_prev, 1.f, true);
     registration.wait();
     auto moved_by = [&roi](const Similarity& m) {
@@ -369,24 +423,7 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
     if (options.red) accumulate_red(frame, roi, d, sums.chunk_red[chunk]);
     ++sums.chunk_count[chunk];
     if (options.on_frame) options.on_frame(frame, d);
-    std::array<float, 64> blocks{};
-    std::array<int, 64> block_pixels{};
-    long long stat_saturated = 0, stat_code = 0;
-    for (int y = 0; y < roi.height; y += 2) {  // the rows that carry statistics
-      stat_saturated += row_saturated[y];
-      stat_code += row_code[y];
-      for (int b = 0; b < 8; ++b) {
-        const int k = (y * 8 / roi.height) * 8 + b;
-        blocks[k] += static_cast<float>(row_block_sum[static_cast<std::size_t>(y) * 8 + b]);
-        // pixels in column block b of a row: x with x*8/w == b
-        block_pixels[k] += (roi.width * (b + 1) + 7) / 8 - (roi.width * b + 7) / 8;
-      }
-    }
-    const double stat_pixels = static_cast<double>((roi.height + 1) / 2) * roi.width;
-    for (int k = 0; k < 64; ++k) blocks[k] = block_pixels[k] > 0 ? blocks[k] / block_pixels[k] : 0.f;
-    sums.blocks.push_back(blocks);
-    sums.saturated_fraction.push_back(static_cast<float>(stat_saturated / stat_pixels));
-    sums.mean_code.push_back(static_cast<float>(stat_code / stat_pixels));
+    green.append_statistics(sums);
     sums.shift_px.push_back(shift);
     sums.motion.push_back(motion);
     sums.patches_used.push_back(patches_used);
