@@ -34,13 +34,17 @@ def scene(mesh, window):
     return (f"mesh: {mesh}\nunits: mm\nior: 1.490\nmedium_ior: 1.498\nskin_ior: 1.4\ncontact: {{group: contact}}\n"
             f"camera: camera.cameramodel\nmap: {{normals: smooth, mode: adaptive, grid_step: 32, tolerance_um: 1.0, chart: lscm}}\n"
             f"captures: {{window_frames: {window}}}\nassess: {{smoothing_mm: 0.1, thresholds_kpa: [4.3, 5.5]}}\n"
-            f"outputs: {{texel_mm: 0.02}}\n")
+            f"outputs: {{texel_mm: 0.02}}\n"
+            # The finger floats flat above the bump before the press: one map serves both phases
+            # (the held model would wrap the bump's wall), as in the study-plate sample.
+            f"baseline: {{part: touching}}\n")
 
 
 def simulation(p, d, h, force, seed, args, presses):
     skin = ", ".join(f"{k}: {v}" for k, v in p.items() if k != "id")
     return (f"simulation:\n  seed: {seed}\n  scale: {args.scale}\n  format: huffyuv\n"
             f"  timeline: {{fps: {args.fps}, baseline_s: 4, press_s: 3}}\n  skin: {{{skin}}}\n"
+            f"  baseline: {{part: touching}}\n"
             f"  pressure:\n    texel_mm: 0.02\n    sources:\n"
             f"      - {{name: bump, type: punch, center_part_mm: [0, 0, {-h}], radius_mm: {d / 2}, force_n: {force:.5f}}}\n"
             + (f"  presses: {{diameters_mm: [2, 3, 4, 5], levels: 9, repetitions: 3}}\n" if presses else ""))
@@ -62,6 +66,8 @@ def main():
     ap.add_argument("--fps", type=float, default=30)
     ap.add_argument("--seed", type=int, default=1)
     ap.add_argument("--clearfit", default=os.path.join(ROOT, "build", "cli", "clearfit"))
+    ap.add_argument("--run", action="store_true", help="then run the study (clearfit study run) into OUT/results")
+    ap.add_argument("--jobs", type=int, default=1, help="with --run: parallel jobs")
     args = ap.parse_args()
     out = os.path.abspath(args.out)
     os.makedirs(out, exist_ok=True)
@@ -120,6 +126,9 @@ def main():
         json.dump(truth, f, indent=1)
     print(f"wrote {os.path.join(out, 'study.yaml')}: {len(people)} participants x {len(conditions)} conditions x "
           f"{args.trials} trials; run: clearfit study run {os.path.join(out, 'study.yaml')} --out {os.path.join(out, 'results')}")
+    if args.run:  # the study itself, with its progress on stderr; its exit code says whether some trials failed
+        sys.exit(subprocess.run([args.clearfit, "study", "run", os.path.join(out, "study.yaml"), "--out",
+                                 os.path.join(out, "results"), "--jobs", str(args.jobs)]).returncode)
 
 
 if __name__ == "__main__":
