@@ -2,6 +2,7 @@
 #include <chrono>
 #include <climits>
 #include <clearfit/error.hpp>
+#include <clearfit/fit/format.hpp>
 #include <clearfit/fit/assessment.hpp>
 #include <cmath>
 #include <limits>
@@ -14,13 +15,7 @@ namespace {
 using Clock = std::chrono::steady_clock;
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 
-std::string fmt(double v, int digits = 1) {
-  std::ostringstream s;
-  s.setf(std::ios::fixed);
-  s.precision(digits);
-  s << v;
-  return s.str();
-}
+std::string fmt(double v, int digits = 1) { return fixed_digits(v, digits); }
 
 /// Bounding box of the pixels that see the skin (and of those the baseline's own rays leave from), padded for motion.
 cv::Rect seen_roi(const RefractionMap& map, const BaselineRays* baseline, int pad) {

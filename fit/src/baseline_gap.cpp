@@ -1,5 +1,6 @@
 // The not-worn capture's gap from the captures (baseline_gap.hpp).
 #include <clearfit/fit/baseline_gap.hpp>
+#include <clearfit/fit/format.hpp>
 #include <clearfit/fit/blanching.hpp>
 
 #include <opencv2/imgproc.hpp>
@@ -17,13 +18,7 @@ constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 constexpr int kBlockPx = 32;
 constexpr std::size_t kMaxSamples = 150000;  ///< more baseline pixels are subsampled evenly
 
-std::string fmt(double v, int digits = 2) {
-  std::ostringstream s;
-  s.setf(std::ios::fixed);
-  s.precision(digits);
-  s << v;
-  return s.str();
-}
+std::string fmt(double v, int digits = 2) { return fixed_digits(v, digits); }
 
 double median(std::vector<double> v) {
   if (v.empty()) return std::numeric_limits<double>::quiet_NaN();

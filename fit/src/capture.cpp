@@ -1,6 +1,7 @@
 #include <algorithm>
 #include <chrono>
 #include <clearfit/error.hpp>
+#include <clearfit/fit/format.hpp>
 #include <clearfit/fit/capture.hpp>
 #include <clearfit/fit/photometric.hpp>
 #include <clearfit/fit/srgb.hpp>
@@ -26,13 +27,7 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double ms_since(Clock::time_point t) { return std::chrono::duration<double, std::milli>(Clock::now() - t).count(); }
 
-std::string fmt(double v, int digits = 2) {
-  std::ostringstream s;
-  s.setf(std::ios::fixed);
-  s.precision(digits);
-  s << v;
-  return s.str();
-}
+std::string fmt(double v, int digits = 2) { return fixed_digits(v, digits); }
 
 }  // namespace
 

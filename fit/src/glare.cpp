@@ -1,6 +1,7 @@
 // Glare on the clear part: detection in the window averages, its chart
 // texels, and hotspots that touch it (see glare.hpp).
 #include <clearfit/fit/glare.hpp>
+#include <clearfit/fit/format.hpp>
 #include <clearfit/fit/photometric.hpp>
 #include <clearfit/fit/srgb.hpp>
 
@@ -14,13 +15,7 @@
 namespace clearfit {
 namespace {
 
-std::string fmt(double v, int digits) {
-  std::ostringstream s;
-  s.setf(std::ios::fixed);
-  s.precision(digits);
-  s << v;
-  return s.str();
-}
+std::string fmt(double v, int digits) { return fixed_digits(v, digits); }
 
 double median_of(std::vector<float> v) {
   if (v.empty()) return 0;

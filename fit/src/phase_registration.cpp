@@ -1,5 +1,6 @@
 // Registration of the phases on the chart (see phase_registration.hpp).
 #include <clearfit/fit/phase_registration.hpp>
+#include <clearfit/fit/format.hpp>
 
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>
@@ -16,13 +17,7 @@ namespace {
 
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 
-std::string fmt(double v, int digits) {
-  std::ostringstream s;
-  s.setf(std::ios::fixed);
-  s.precision(digits);
-  s << v;
-  return s.str();
-}
+std::string fmt(double v, int digits) { return fixed_digits(v, digits); }
 
 double quantile(std::vector<float> v, double q) {
   if (v.empty()) return 0;

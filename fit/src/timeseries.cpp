@@ -1,4 +1,5 @@
 #include <clearfit/error.hpp>
+#include <clearfit/fit/format.hpp>
 #include <clearfit/fit/srgb.hpp>
 #include <clearfit/fit/timeseries.hpp>
 
@@ -17,13 +18,7 @@ namespace {
 
 constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 
-std::string fmt(double v, int digits = 2) {
-  std::ostringstream s;
-  s.setf(std::ios::fixed);
-  s.precision(digits);
-  s << v;
-  return s.str();
-}
+std::string fmt(double v, int digits = 2) { return fixed_digits(v, digits); }
 
 }  // namespace
 
