@@ -48,6 +48,13 @@ int run_program(int argc, char** argv, const std::string& program, const std::st
   app.require_subcommand(0, 1);
   app.failure_message(CLI::FailureMessage::help);
   app.set_version_flag("--version", program + " " CLEARFIT_VERSION);
+  // Options from a file: a [COMMAND] section per command of `key = value` lines (the options' long
+  // names without dashes); the command line wins. Keys that name no option are refused.
+  std::string config_file;
+  app.set_config("--config", "", "Options from a file (TOML): a [COMMAND] section per command, key = value with the options' long names; the command line wins")
+      ->each([&config_file](const std::string& f) { config_file = f; })
+      ->check(CLI::ExistingFile);
+  app.allow_config_extras(CLI::config_extras_mode::error);
   std::map<CLI::App*, Run> runs;
   // Every subcommand a registration adds (nested ones too) runs its Run.
   for (const auto& command : registered_commands()) {
@@ -58,6 +65,10 @@ int run_program(int argc, char** argv, const std::string& program, const std::st
   }
   try {
     app.parse(argc, argv);
+  } catch (const CLI::ConfigError& e) {
+    std::cerr << program << ": error: " << config_file << ": " << e.what()
+              << ": each key of a [COMMAND] section must be one of that command's long options (see " << program << " COMMAND --help)\n";
+    return 2;
   } catch (const CLI::ParseError& e) {
     return app.exit(e) == 0 ? 0 : 2;
   }

@@ -69,6 +69,24 @@ TEST_F(Usage, ConflictingContactOptions) {
   EXPECT_TRUE(listing(work()).empty());
 }
 
+// --config FILE: a [COMMAND] section's keys are that command's long options; the command line wins;
+// a key that names no option is refused with exit 2, naming the file and the key.
+TEST_F(Usage, ConfigFileGivesOptionsTheCommandLineWins) {
+  const std::string mesh = (fs::path(CLEARFIT_SAMPLES_DIR) / "wristband" / "wristband.obj").string();
+  write_text(work() / "c.toml", "# options\n[mesh-info]\njson = true\ncontact-group = \"outer\"\n");
+  const RunResult from_file = run({"--config", "c.toml", "mesh-info", mesh});
+  ASSERT_EQ(from_file.exit_code, 0) << from_file;
+  EXPECT_NE(from_file.out.find("\"chosen_by\": \"group 'outer'\""), std::string::npos) << from_file;
+  const RunResult wins = run({"--config", "c.toml", "mesh-info", mesh, "--contact-group", "contact"});
+  ASSERT_EQ(wins.exit_code, 0) << wins;
+  EXPECT_NE(wins.out.find("\"chosen_by\": \"group 'contact'\""), std::string::npos) << wins;
+  write_text(work() / "typo.toml", "[mesh-info]\njsn = true\n");
+  const RunResult typo = run({"--config", "typo.toml", "mesh-info", mesh});
+  EXPECT_EQ(typo.exit_code, 2) << typo;
+  EXPECT_NE(typo.err.find("typo.toml"), std::string::npos) << typo;
+  EXPECT_NE(typo.err.find("mesh-info.jsn"), std::string::npos) << typo;
+}
+
 // The benchmarks are a separate program (clearfit-bench), not subcommands of the shipped clearfit.
 TEST_F(Usage, BenchmarksAreASeparateProgram) {
   const RunResult r = run({"--help"});
