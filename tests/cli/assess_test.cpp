@@ -13,6 +13,7 @@
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <cstring>
 #include <map>
@@ -136,6 +137,79 @@ TEST_F(AssessCli, FindsTheSimulatedHotspotsWhereTheTruthPutsThem) {
   }
   // Provenance: every input hashed.
   for (const auto& in : report["inputs"]) EXPECT_EQ(in["sha256"].get<std::string>().size(), 64u) << in;
+}
+
+// The pose's σ end to end: the same captures assessed with the camera's pose from a pose file, once
+// without and once with a translation σ of s mm on each camera axis (no rotation σ), which moves every
+// texel's skin point by exactly s across its line of sight. The pressure is unchanged; its σ gains
+// |∇p|·s in quadrature (∇p by central differences of pressure.npy here; clearfit takes |∇y| and dp/dy),
+// so it grows on the hotspots' flanks and stays put where the pressure is flat.
+TEST_F(AssessCli, PoseCovarianceAddsItsTermWhereThePressureIsSteep) {
+  const double s = 0.3;  // mm
+  // The pose: the captures' camera extrinsics (rt_fromref = cam_from_part, Rodrigues r and t in mm).
+  const std::string model = read_text(captures() / "camera.cameramodel");
+  const auto open = model.find('[', model.find("'extrinsics'")), close = model.find(']', open);
+  std::string list = model.substr(open + 1, close - open - 1);
+  std::replace(list.begin(), list.end(), ',', ' ');
+  std::istringstream numbers(list);
+  std::vector<std::string> rt(6);
+  for (auto& x : rt) numbers >> x;
+  const std::string pose = "{\"schema\": \"clearfit.pose/1\", \"units\": \"mm\", \"cam_from_part\": {\"r\": [" + rt[0] + ", " + rt[1] + ", " +
+                           rt[2] + "], \"t\": [" + rt[3] + ", " + rt[4] + ", " + rt[5] + "]}";
+  write_text(work() / "pose.json", pose + "}\n");
+  write_text(work() / "pose_sigma.json",
+             pose + ", \"sigma\": {\"rotation_deg\": [0, 0, 0], \"translation_mm\": [" + std::to_string(s) + ", " + std::to_string(s) + ", " +
+                 std::to_string(s) + "]}}\n");
+  scene(two_captures(), calibration() + "pose: pose.json\n");
+  const RunResult without = assess({"--out", "without"});
+  ASSERT_EQ(without.exit_code, 0) << without;
+  scene(two_captures(), calibration() + "pose: pose_sigma.json\n");
+  const RunResult with = assess({"--out", "with"});
+  ASSERT_EQ(with.exit_code, 0) << with;
+  const auto report_without = nlohmann::json::parse(read_text(work() / "without" / "report.json"));
+  const auto report_with = nlohmann::json::parse(read_text(work() / "with" / "report.json"));
+  EXPECT_TRUE(report_without["calibration"]["pose"]["uncertainty_mm"].is_null());
+  EXPECT_NEAR(report_with["calibration"]["pose"]["uncertainty_mm"].get<double>(), s, 1e-6 * s);
+
+  const npy::Float32Array p = npy::read_float32(work() / "without" / "pressure.npy");
+  const npy::Float32Array p_with = npy::read_float32(work() / "with" / "pressure.npy");
+  const npy::Float32Array sn = npy::read_float32(work() / "without" / "pressure_sigma.npy");
+  const npy::Float32Array sc = npy::read_float32(work() / "with" / "pressure_sigma.npy");
+  ASSERT_EQ(p.shape.size(), 2u);
+  ASSERT_EQ(p_with.values.size(), p.values.size());
+  for (std::size_t k = 0; k < p.values.size(); ++k)
+    ASSERT_TRUE(p.values[k] == p_with.values[k] || (std::isnan(p.values[k]) && std::isnan(p_with.values[k]))) << "texel " << k;
+  const int h = static_cast<int>(p.shape[0]), w = static_cast<int>(p.shape[1]);
+  const double texel_mm = 0.1;  // the scene's outputs.texel_mm
+  auto at = [&](const npy::Float32Array& a, int i, int j) { return static_cast<double>(a.values[static_cast<std::size_t>(j) * w + i]); };
+  std::vector<double> steep_ratio, flat_growth;
+  double most = 0;  // the largest |∇p|·s / σ
+  for (int j = 1; j + 1 < h; ++j)
+    for (int i = 1; i + 1 < w; ++i) {
+      bool estimates = true;  // the texel and its four neighbours have a σ in both runs
+      for (auto [di, dj] : {std::pair{0, 0}, {1, 0}, {-1, 0}, {0, 1}, {0, -1}})
+        estimates = estimates && std::isfinite(at(sn, i + di, j + dj)) && std::isfinite(at(sc, i + di, j + dj));
+      if (!estimates) continue;
+      const double gradient = std::hypot(at(p, i + 1, j) - at(p, i - 1, j), at(p, i, j + 1) - at(p, i, j - 1)) / (2 * texel_mm);
+      const double predicted = gradient * s, without_s = at(sn, i, j), with_s = at(sc, i, j);
+      EXPECT_GE(with_s, without_s * (1 - 1e-6)) << "texel " << i << ", " << j;
+      most = std::max(most, predicted / without_s);
+      if (predicted > without_s) steep_ratio.push_back(std::sqrt(with_s * with_s - without_s * without_s) / predicted);
+      if (predicted < 0.2 * without_s) flat_growth.push_back(with_s / without_s - 1);
+    }
+  ASSERT_GT(steep_ratio.size(), 50u) << "largest |grad p| s / sigma " << most;
+  ASSERT_GE(flat_growth.size(), 5u);  // the hotspots' tops
+  auto median = [](std::vector<double> v) {
+    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+    return v[v.size() / 2];
+  };
+  const double steep = median(steep_ratio), flat = median(flat_growth);
+  const double flat_max = *std::max_element(flat_growth.begin(), flat_growth.end());
+  std::printf("steep texels (|grad p| s > sigma): %zu, added sigma / (|grad p| s) median %.3f; flat texels (< 0.2 sigma): %zu, "
+              "sigma grew by median %.4f %%, at most %.3f %%\n",
+              steep_ratio.size(), steep, flat_growth.size(), 100 * flat, 100 * flat_max);
+  EXPECT_NEAR(steep, 1.0, 0.15);
+  EXPECT_LT(flat_max, 0.03);  // sqrt(1 + 0.2²) - 1 = 2 % at most, if clearfit's gradient is this one
 }
 
 TEST_F(AssessCli, WithoutCalibrationReportsTheSignal) {
