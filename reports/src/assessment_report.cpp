@@ -159,60 +159,99 @@ json pose_json(const Assessment& a, const AssessmentScene& scene, const Assessme
   return j;
 }
 
-}  // namespace
-
-json assessment_report_json(const Assessment& a, const AssessmentScene& scene, const AssessmentContext& c) {
+/// The files the run read, each with its role and SHA-256.
+json inputs_json(const AssessmentContext& c) {
   json inputs = json::array();
   for (const auto& in : c.inputs) inputs.push_back({{"role", in.role}, {"path", in.path}, {"sha256", in.sha256}});
-  const Chart& chart = *scene.chart;
-  const ChartGrid& g = a.signal.y.grid;
-  const Coverage& cov = a.coverage;
-  const double contact = std::max(cov.contact_area_mm2, 1e-12);
-  json hotspots = json::array();
-  double pressed_seen = 0, pressed_unseen = 0;
-  for (const Hotspot& h : a.hotspots) {
-    const double seen_and_unseen = h.area_mm2 + h.unseen_area_mm2;
-    pressed_seen += h.area_mm2, pressed_unseen += h.unseen_area_mm2;
-    json j = {{"id", h.id},
-              {"area_mm2", num(h.area_mm2)},
-              {"half_peak_area_mm2", num(h.half_peak_area_mm2)},
-              {"centroid_mm", vec(h.centroid_mm)},
-              {"centroid_mean_mm", vec(h.centroid_mean_mm)},
-              {"centre_of_pressure_mm", vec(h.centre_of_pressure_mm)},
-              {"centre_of_pressure_sigma_mm", num(h.centre_of_pressure_sigma_mm)},
-              {"centroid_uv_mm", vec(h.centroid_uv_mm)},
-              {"unseen_area_mm2", num(h.unseen_area_mm2)},
-              {"unseen_share", num(seen_and_unseen > 0 ? h.unseen_area_mm2 / seen_and_unseen : 0.0)},
-              {"faces", h.faces},
-              {"texels", h.texels},
-              {"saturated_texels", h.flagged_texels},
-              {"touches_glare", h.touches_mask}};
-    const std::string unit = a.calibrated ? "_kpa" : "_signal";
-    json levels = json::array();
-    for (const HotspotLevel& l : h.levels)
-      levels.push_back({{"threshold" + unit, num(l.threshold)},
-                        {"area_mm2", num(l.area_mm2)},
-                        {"area_sigma_mm2", num(l.area_sigma_mm2)},
-                        {"mean" + unit, num(l.mean)},
-                        {"mean_sigma" + unit, num(l.mean_sigma)},
-                        {"texels", l.texels}});
-    j["levels"] = levels;
-    if (a.calibrated) {
-      j["threshold_kpa"] = num(h.threshold);
-      j["peak_kpa"] = num(h.peak);
-      j["peak_sigma_kpa"] = num(h.peak_sigma);
-      j["mean_kpa"] = num(h.mean);
-      j["mean_sigma_kpa"] = num(h.mean_sigma);
-    } else {
-      for (const char* k : {"threshold_kpa", "peak_kpa", "peak_sigma_kpa", "mean_kpa", "mean_sigma_kpa"}) j[k] = nullptr;
-      j["threshold_signal"] = num(h.threshold);
-      j["peak_signal"] = num(h.peak);
-      j["peak_sigma_signal"] = num(h.peak_sigma);
-      j["mean_signal"] = num(h.mean);
-      j["mean_sigma_signal"] = num(h.mean_sigma);
-    }
-    hotspots.push_back(j);
+  return inputs;
+}
+
+/// One hotspot: where it is, its size, its level at each threshold, and its pressure (kPa) or, without a
+/// calibration, its signal (the kPa keys then null).
+json hotspot_json(const Hotspot& h, bool calibrated) {
+  const double seen_and_unseen = h.area_mm2 + h.unseen_area_mm2;
+  json j = {{"id", h.id},
+            {"area_mm2", num(h.area_mm2)},
+            {"half_peak_area_mm2", num(h.half_peak_area_mm2)},
+            {"centroid_mm", vec(h.centroid_mm)},
+            {"centroid_mean_mm", vec(h.centroid_mean_mm)},
+            {"centre_of_pressure_mm", vec(h.centre_of_pressure_mm)},
+            {"centre_of_pressure_sigma_mm", num(h.centre_of_pressure_sigma_mm)},
+            {"centroid_uv_mm", vec(h.centroid_uv_mm)},
+            {"unseen_area_mm2", num(h.unseen_area_mm2)},
+            {"unseen_share", num(seen_and_unseen > 0 ? h.unseen_area_mm2 / seen_and_unseen : 0.0)},
+            {"faces", h.faces},
+            {"texels", h.texels},
+            {"saturated_texels", h.flagged_texels},
+            {"touches_glare", h.touches_mask}};
+  const std::string unit = calibrated ? "_kpa" : "_signal";
+  json levels = json::array();
+  for (const HotspotLevel& l : h.levels)
+    levels.push_back({{"threshold" + unit, num(l.threshold)},
+                      {"area_mm2", num(l.area_mm2)},
+                      {"area_sigma_mm2", num(l.area_sigma_mm2)},
+                      {"mean" + unit, num(l.mean)},
+                      {"mean_sigma" + unit, num(l.mean_sigma)},
+                      {"texels", l.texels}});
+  j["levels"] = levels;
+  // Without a calibration the kPa keys are there, null, beside the signal's.
+  const std::pair<const char*, double> values[] = {
+      {"threshold", h.threshold}, {"peak", h.peak}, {"peak_sigma", h.peak_sigma}, {"mean", h.mean}, {"mean_sigma", h.mean_sigma}};
+  for (const auto& [name, v] : values) {
+    j[name + unit] = num(v);
+    if (!calibrated) j[std::string(name) + "_kpa"] = nullptr;
   }
+  return j;
+}
+
+json part_json(const AssessmentScene& scene, const AssessmentContext& c) {
+  return {{"mesh", c.mesh_name},
+          {"vertices", scene.mesh->vertices.size()},
+          {"faces", scene.mesh->faces.size()},
+          {"ior", num(c.ior)},
+          {"medium_ior", num(c.medium_ior)},
+          {"contact_faces", scene.contact->faces.size()},
+          {"contact_area_mm2", num(scene.contact->area_mm2)},
+          {"fast_path", c.fast_path}};
+}
+
+json chart_json(const Chart& chart, const ChartGrid& g, const AssessmentContext& c) {
+  return {{"texel_mm", g.texel_mm},
+          {"width", g.width},
+          {"height", g.height},
+          {"uv_min_mm", vec(Vec2(g.uv_origin))},
+          {"uv_max_mm", vec(Vec2(g.uv(g.width - 1, g.height - 1)))},
+          {"method", c.chart_method},
+          {"area_ratio_min", num(chart.area_ratio_min)},
+          {"area_ratio_max", num(chart.area_ratio_max)}};
+}
+
+/// How much of the contact surface was seen, why the rest was not, and how much of the pressed area
+/// (the hotspots') lies where the camera does not see.
+json coverage_json(const Coverage& cov, const std::vector<Hotspot>& hotspots) {
+  double pressed_seen = 0, pressed_unseen = 0;
+  for (const Hotspot& h : hotspots) pressed_seen += h.area_mm2, pressed_unseen += h.unseen_area_mm2;
+  const double contact = std::max(cov.contact_area_mm2, 1e-12);
+  const bool tir = cov.blocked_reason == "contact_tir" || cov.blocked_reason == "entry_tir";
+  return {{"contact_area_mm2", num(cov.contact_area_mm2)},
+          {"seen_area_mm2", num(cov.seen_area_mm2)},
+          {"seen_fraction", num(cov.seen_area_mm2 / contact)},
+          {"hidden_fraction",
+           {{"total_internal_reflection", num(tir ? cov.hidden_blocked_mm2 / contact : 0.0)},
+            {"outside_view", num(cov.hidden_outside_view_mm2 / contact)},
+            {"other", num(tir ? 0.0 : cov.hidden_blocked_mm2 / contact)},
+            {"glare", num(cov.glare_masked_mm2 / contact)}}},
+          {"glare_masked_mm2", num(cov.glare_masked_mm2)},
+          {"blocked_reason", cov.blocked_reason},
+          {"pressed_seen_mm2", num(pressed_seen)},
+          {"pressed_unseen_mm2", num(pressed_unseen)},
+          {"pressed_unseen_share", num(pressed_seen + pressed_unseen > 0 ? pressed_unseen / (pressed_seen + pressed_unseen) : 0.0)}};
+}
+
+/// The signal on the chart: its reference and noise, the area blanched beyond 3 σ on the part, the mean of
+/// the plain (uncorrected) difference, and the colour range of its pictures.
+json signal_json(const Assessment& a) {
+  const ChartGrid& g = a.signal.y.grid;
   double blanched = 0;
   double plain_sum = 0;
   long long plain_n = 0;
@@ -222,34 +261,53 @@ json assessment_report_json(const Assessment& a, const AssessmentScene& scene, c
     if (y > 3 * std::max(a.signal.sigma_y.value[k], 1e-6f) && a.raster.face[k] >= 0) blanched += a.raster.area_mm2[k];
     if (std::isfinite(a.signal.plain_difference.value[k])) plain_sum += a.signal.plain_difference.value[k], ++plain_n;
   }
-  json pressure_cal = nullptr;
-  if (c.calibration) {
-    const PressureCalibration& p = *c.calibration;
-    pressure_cal = {{"source", p.path.string()},
-                    {"person", p.person},
-                    {"model", to_string(p.model)},
-                    {"y_max", num(p.logistic.y_max)},
-                    {"p50_kpa", num(p.logistic.p50_kpa)},
-                    {"width_kpa", num(p.logistic.width_kpa)},
-                    {"noise_sigma", num(p.noise_sigma)},
-                    {"rmse_kpa", num(p.rmse_kpa)},
-                    {"r2", num(p.r2)},
-                    {"linear_r2", num(p.r2_linear)},
-                    {"reference_r2", 0.439},
-                    {"presses", p.presses},
-                    {"range_kpa", {num(p.p_min_kpa), num(p.p_max_kpa)}}};
-  }
-  const auto [lo, hi] = pressure_range(c);
   const auto [slo, shi] = signal_range(a.signal);
-  json pressure = nullptr;
-  if (a.calibrated)
-    pressure = {{"unit", "kPa"},
-                {"colormap", "viridis"},
-                {"range_kpa", {lo, hi}},
-                {"peak_kpa", num(a.peak_kpa)},
-                {"mean_kpa", num(a.mean_kpa)},
-                {"below_detection_fraction", num(a.below_detection_fraction)},
-                {"saturated_fraction", num(a.saturated_fraction)}};
+  return {{"feature", "log_green_ratio"},
+          {"reference", a.signal.reference},
+          {"reference_log_ratio", num(a.signal.reference_log_ratio)},
+          {"noise_sigma", num(a.signal.noise_sigma)},
+          {"noise_sigma_temporal", num(a.signal.temporal_noise_sigma)},
+          {"noise_sigma_spatial", num(a.signal.spatial_noise_sigma)},
+          {"blanched_area_mm2", num(blanched)},
+          {"plain_difference_mean", plain_n ? num(plain_sum / plain_n) : json(nullptr)},
+          {"range", {slo, shi}}};
+}
+
+/// The wearer's pressure calibration as used, or null without one.
+json pressure_calibration_json(const AssessmentContext& c) {
+  if (!c.calibration) return nullptr;
+  const PressureCalibration& p = *c.calibration;
+  return {{"source", p.path.string()},
+          {"person", p.person},
+          {"model", to_string(p.model)},
+          {"y_max", num(p.logistic.y_max)},
+          {"p50_kpa", num(p.logistic.p50_kpa)},
+          {"width_kpa", num(p.logistic.width_kpa)},
+          {"noise_sigma", num(p.noise_sigma)},
+          {"rmse_kpa", num(p.rmse_kpa)},
+          {"r2", num(p.r2)},
+          {"linear_r2", num(p.r2_linear)},
+          {"reference_r2", 0.439},
+          {"presses", p.presses},
+          {"range_kpa", {num(p.p_min_kpa), num(p.p_max_kpa)}}};
+}
+
+/// The pressure field's summary and colour range, or null without a calibration.
+json pressure_json(const Assessment& a, const AssessmentContext& c) {
+  if (!a.calibrated) return nullptr;
+  const auto [lo, hi] = pressure_range(c);
+  return {{"unit", "kPa"},
+          {"colormap", "viridis"},
+          {"range_kpa", {lo, hi}},
+          {"peak_kpa", num(a.peak_kpa)},
+          {"mean_kpa", num(a.mean_kpa)},
+          {"below_detection_fraction", num(a.below_detection_fraction)},
+          {"saturated_fraction", num(a.saturated_fraction)}};
+}
+
+/// The files written beside report.json (those of the pressure view, the registration and the timeline only
+/// when they were made).
+json outputs_json(const Assessment& a) {
   json outputs = {{"heatmap_glb", "heatmap.glb"},
                   {"chart_pressure_png", "chart_pressure.png"},
                   {"chart_signal_png", "chart_signal.png"},
@@ -270,10 +328,21 @@ json assessment_report_json(const Assessment& a, const AssessmentScene& scene, c
     outputs["timeline_texels_signal_npy"] = "timeline_texels_signal.npy";
     if (a.calibrated) outputs["timeline_texels_pressure_npy"] = "timeline_texels_pressure_kpa.npy";
   }
-  json split = nullptr;
-  if (a.split)
-    split = {{"press_frame", a.split->press_frame}, {"settled_frame", a.split->settled_frame}, {"step_sigmas", num(a.split->step_sigmas)},
-             {"release_frame", a.split->release_frame >= 0 ? json(a.split->release_frame) : json(nullptr)}};
+  return outputs;
+}
+
+/// Where one video holding both phases was split (frames), or null with two videos.
+json split_json(const Assessment& a) {
+  if (!a.split) return nullptr;
+  return {{"press_frame", a.split->press_frame}, {"settled_frame", a.split->settled_frame}, {"step_sigmas", num(a.split->step_sigmas)},
+          {"release_frame", a.split->release_frame >= 0 ? json(a.split->release_frame) : json(nullptr)}};
+}
+
+}  // namespace
+
+json assessment_report_json(const Assessment& a, const AssessmentScene& scene, const AssessmentContext& c) {
+  json hotspots = json::array();
+  for (const Hotspot& h : a.hotspots) hotspots.push_back(hotspot_json(h, a.calibrated));
   return {
       {"schema", "clearfit.report/1"},
       {"clearfit_version", c.clearfit_version},
@@ -281,65 +350,27 @@ json assessment_report_json(const Assessment& a, const AssessmentScene& scene, c
       {"run_time_s", num(c.run_time_s)},
       {"scene", c.scene},
       {"options", c.options},
-      {"inputs", inputs},
-      {"part",
-       {{"mesh", c.mesh_name},
-        {"vertices", scene.mesh->vertices.size()},
-        {"faces", scene.mesh->faces.size()},
-        {"ior", num(c.ior)},
-        {"medium_ior", num(c.medium_ior)},
-        {"contact_faces", scene.contact->faces.size()},
-        {"contact_area_mm2", num(scene.contact->area_mm2)},
-        {"fast_path", c.fast_path}}},
-      {"chart",
-       {{"texel_mm", g.texel_mm},
-        {"width", g.width},
-        {"height", g.height},
-        {"uv_min_mm", vec(Vec2(g.uv_origin))},
-        {"uv_max_mm", vec(Vec2(g.uv(g.width - 1, g.height - 1)))},
-        {"method", c.chart_method},
-        {"area_ratio_min", num(chart.area_ratio_min)},
-        {"area_ratio_max", num(chart.area_ratio_max)}}},
-      {"coverage",
-       {{"contact_area_mm2", num(cov.contact_area_mm2)},
-        {"seen_area_mm2", num(cov.seen_area_mm2)},
-        {"seen_fraction", num(cov.seen_area_mm2 / contact)},
-        {"hidden_fraction",
-         {{"total_internal_reflection", num(cov.blocked_reason == "contact_tir" || cov.blocked_reason == "entry_tir" ? cov.hidden_blocked_mm2 / contact : 0.0)},
-          {"outside_view", num(cov.hidden_outside_view_mm2 / contact)},
-          {"other", num(cov.blocked_reason == "contact_tir" || cov.blocked_reason == "entry_tir" ? 0.0 : cov.hidden_blocked_mm2 / contact)},
-          {"glare", num(cov.glare_masked_mm2 / contact)}}},
-        {"glare_masked_mm2", num(cov.glare_masked_mm2)},
-        {"blocked_reason", cov.blocked_reason},
-        {"pressed_seen_mm2", num(pressed_seen)},
-        {"pressed_unseen_mm2", num(pressed_unseen)},
-        {"pressed_unseen_share", num(pressed_seen + pressed_unseen > 0 ? pressed_unseen / (pressed_seen + pressed_unseen) : 0.0)}}},
-      {"captures", {{"baseline", phase_json(a.baseline)}, {"worn", phase_json(a.worn)}, {"split", split}}},
-      {"glare", glare_json(a.glare, cov)},
+      {"inputs", inputs_json(c)},
+      {"part", part_json(scene, c)},
+      {"chart", chart_json(*scene.chart, a.signal.y.grid, c)},
+      {"coverage", coverage_json(a.coverage, a.hotspots)},
+      {"captures", {{"baseline", phase_json(a.baseline)}, {"worn", phase_json(a.worn)}, {"split", split_json(a)}}},
+      {"glare", glare_json(a.glare, a.coverage)},
       {"baseline_geometry", baseline_geometry_json(a.baseline_geometry)},
       {"phase_registration", phase_registration_json(a.phase_registration)},
-      {"signal",
-       {{"feature", "log_green_ratio"},
-        {"reference", a.signal.reference},
-        {"reference_log_ratio", num(a.signal.reference_log_ratio)},
-        {"noise_sigma", num(a.signal.noise_sigma)},
-        {"noise_sigma_temporal", num(a.signal.temporal_noise_sigma)},
-        {"noise_sigma_spatial", num(a.signal.spatial_noise_sigma)},
-        {"blanched_area_mm2", num(blanched)},
-        {"plain_difference_mean", plain_n ? num(plain_sum / plain_n) : json(nullptr)},
-        {"range", {slo, shi}}}},
+      {"signal", signal_json(a)},
       {"calibration",
        {{"camera", {{"rms_px", nullptr}, {"source", c.camera_source}}},
         {"pose", pose_json(a, scene, c)},
-        {"pressure", pressure_cal}}},
-      {"pressure", pressure},
+        {"pressure", pressure_calibration_json(c)}}},
+      {"pressure", pressure_json(a, c)},
       {"thresholds_kpa", a.calibrated ? json(a.thresholds) : json::array()},
       {"thresholds_signal", a.calibrated ? json::array() : json(a.thresholds)},
       {"hotspots", hotspots},
       {"timeline", timeline_json(a)},
       {"warnings", a.warnings},
       {"timings_ms", {{"decode_wait", num(a.read_ms)}, {"accumulate", num(a.work_ms)}, {"assessment", num(a.total_ms)}}},
-      {"outputs", outputs}};
+      {"outputs", outputs_json(a)}};
 }
 
 std::vector<std::string> write_assessment_outputs(const Assessment& a, const AssessmentScene& scene,
