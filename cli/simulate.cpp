@@ -18,6 +18,8 @@
 #include <nlohmann/json.hpp>
 
 #include <chrono>
+#include <functional>
+#include <optional>
 #include <fstream>
 #include <cmath>
 #include <iostream>
@@ -74,20 +76,205 @@ void record_preset(const std::filesystem::path& truth_file, const SimulationSect
   write_file_atomically(truth_file, t.dump(2) + "\n");
 }
 
+/// The command line of `clearfit simulate`, and the scene it reads.
+struct SimulateOptions {
+  std::string scene_file, out, format;
+  long long seed = -1;
+  int crf = -1;
+  double scale = 0;
+  bool frames_only = false, no_presses = false, presses_only = false, quiet = false;
+  Scene scene;
+  SceneFields::Options options;
+  CacheOptions cache;
+};
+
+using Say = std::function<void(const std::string&)>;
+
+/// Reads the scene; its simulation: section with the command line's overrides (seed, format, crf, scale), checked.
+SimulationSection simulation_spec(SimulateOptions& o) {
+  read_scene(o.scene_file, o.scene, o.options);
+  if (!o.scene.simulation)
+    throw InputError(o.scene_file, "key 'simulation'", "missing: the scene has no simulation: section",
+                     "add one (see the simulation keys in README.md)");
+  SimulationSection spec = *o.scene.simulation;
+  if (o.seed >= 0) spec.seed = static_cast<std::uint64_t>(o.seed);
+  if (!o.format.empty()) spec.format = sim::parse_video_format(o.format);
+  if (o.frames_only) spec.format = sim::VideoFormat::png;
+  if (o.crf >= 0) spec.timeline.crf = o.crf;
+  if (o.scale > 0) spec.scale = o.scale;
+  if (!(spec.scale >= 0.05 && spec.scale <= 4)) throw InputError("", "--scale", "must be from 0.05 to 4");
+  if (o.presses_only && !spec.presses)
+    throw InputError(o.scene_file, "key 'simulation.presses'", "missing, but --presses-only was given");
+  return spec;
+}
+
+/// simulation.pressure.map (a .npy on the chart grid at the field's texel_mm) as the field's user map;
+/// InputError naming both shapes when they differ.
+void read_pressure_map(SimulationSection& spec, const Chart& chart) {
+  const cv::Mat m = sim::read_npy_2d(*spec.pressure_map);
+  ChartField f;
+  f.grid = ChartGrid::covering(chart.uv_min, chart.uv_max, spec.field.texel_mm);
+  if (m.rows != f.grid.height || m.cols != f.grid.width) {
+    std::ostringstream s;
+    s << "the map is " << m.cols << " x " << m.rows << " (width x height); the chart grid at texel_mm "
+      << spec.field.texel_mm << " is " << f.grid.width << " x " << f.grid.height;
+    throw InputError(*spec.pressure_map, "shape", s.str(), "render it on the grid of truth_pressure.npy");
+  }
+  f.value.assign(m.begin<float>(), m.end<float>());
+  spec.field.user_map = std::move(f);
+}
+
+/// What renders the frames from the skin's drive: the worn frames through the part's map (with the skin texture
+/// displaced when the skin slid or bulged between the phases), and the not-worn frames through their own map when
+/// the part is held off the skin or absent. Keeps references to `map` and `drive`, which must outlive it.
+struct FrameRenderers {
+  FrameRenderers(const LoadedPart& part, const RefractionMap& map, const ChartField& drive, const sim::PressureTruth& truth,
+                 const SimulationSection& spec, const Say& say)
+      : touching(map, drive, spec.skin, spec.camera, spec.seed) {
+    if (spec.baseline.part != BaselinePart::touching) {
+      baseline_map.emplace(compute_baseline_map(part.trace_scene(), part.camera, part.cam_from_part, part.map_options,
+                                                spec.baseline.part, spec.baseline.gap_mm, map));
+      baseline_renderer.emplace(*baseline_map, drive, spec.skin, spec.camera, spec.seed);
+      std::ostringstream b;
+      b << "baseline: part " << to_string(spec.baseline.part) << ", skin " << spec.baseline.gap_mm << " mm beyond the contact surface, "
+        << baseline_map->stats.by_status[0] << " pixels see it";
+      say(b.str());
+    }
+    if (spec.skin_motion.any()) {
+      skin_moved = sim::skin_displacement(spec.skin_motion, truth.pressure);
+      moved_renderer.emplace(map, drive, spec.skin, spec.camera, spec.seed, &*skin_moved);
+    }
+  }
+  FrameRenderers(const FrameRenderers&) = delete;
+  FrameRenderers& operator=(const FrameRenderers&) = delete;
+  const sim::CaptureRenderer& worn() const { return moved_renderer ? *moved_renderer : touching; }
+  /// The not-worn frames' renderer when it is not the worn one.
+  const sim::CaptureRenderer* baseline() const {
+    return baseline_renderer ? &*baseline_renderer : moved_renderer ? &touching : nullptr;
+  }
+
+  sim::CaptureRenderer touching;                          ///< through the part's map, the skin as it lies
+  std::optional<RefractionMap> baseline_map;              ///< the not-worn geometry's own map (held, absent)
+  std::optional<sim::CaptureRenderer> baseline_renderer;  ///< through baseline_map
+  std::optional<sim::SkinDisplacement> skin_moved;        ///< the worn frames' texture displacement on the chart
+  std::optional<sim::CaptureRenderer> moved_renderer;     ///< through the part's map, the texture displaced
+};
+
+/// The frames of both phases written into `dir`, with progress by tenths.
+sim::CaptureSummary render_frames(const FrameRenderers& renderers, const SimulationSection& spec, const cv::Size& image,
+                                  const std::filesystem::path& dir, std::optional<sim::PhotometricSchedule>& photometry,
+                                  const Say& say) {
+  int last_decile = -1;
+  if (spec.photometric.any()) photometry.emplace(spec.photometric, spec.camera, spec.timeline, image);
+  sim::CaptureSummary cap = sim::render_captures(
+      renderers.worn(), spec.skin, spec.timeline, spec.camera, spec.format, dir, spec.seed, [&](int done, int total) {
+        const int decile = 10 * done / total;
+        if (decile != last_decile) {
+          last_decile = decile;
+          say("frame " + std::to_string(done) + "/" + std::to_string(total));
+        }
+      }, photometry ? &*photometry : nullptr, renderers.baseline());
+  cap.baseline = spec.baseline;
+  return cap;
+}
+
+/// The ground truth beside the frames (truth.json with its inputs and preset, the pressure on the chart and the
+/// vertices, the photometric effects, the skin's displacement) and the scaled camera; the names of the files written.
+std::vector<std::string> write_capture_truth(const Scene& sc, const SimulationSection& spec, const LoadedPart& part,
+                                             const RefractionMap& map, const sim::PressureTruth& truth,
+                                             const sim::CaptureSummary& cap, const FrameRenderers& renderers,
+                                             const std::optional<sim::PhotometricSchedule>& photometry,
+                                             const std::filesystem::path& dir) {
+  std::vector<std::string> written;
+  std::vector<std::pair<std::string, std::string>> inputs{{"scene", sc.file.string()}, {"mesh", sc.part.mesh}, {"camera", sc.part.camera}};
+  if (!sc.part.pose.empty()) inputs.emplace_back("pose", sc.part.pose);
+  if (spec.pressure_map) inputs.emplace_back("pressure_map", *spec.pressure_map);
+  if (spec.scale != 1.0) {
+    write_cameramodel(part.camera, dir / "camera.cameramodel");
+    inputs.emplace_back("scaled_camera", "camera.cameramodel");
+    written.push_back("camera.cameramodel");
+  }
+  sim::write_truth(dir, spec.field, truth, spec.skin, spec.camera, spec.timeline, cap, spec.format,
+                   {map.width, map.height}, spec.seed, inputs);
+  for (const auto& f : cap.files) written.push_back(f);
+  for (const char* f : {"truth.json", "truth_pressure.npy", "truth_vertex_pressure.npy"}) written.emplace_back(f);
+  if (photometry)
+    for (const auto& f : photometry->write_truth(dir)) written.push_back(f);
+  record_preset(dir / "truth.json", spec);
+  if (renderers.skin_moved) {
+    sim::write_displacement_npy(*renderers.skin_moved, dir / "truth_displacement.npy");
+    written.emplace_back("truth_displacement.npy");
+  }
+  return written;
+}
+
+/// The frames' count and speed on `say`, and each true hotspot on stdout.
+void print_capture_summary(const sim::CaptureSummary& cap, const RefractionMap& map, const SimulationSection& spec,
+                           const sim::PressureTruth& truth, const Say& say) {
+  const int frames = cap.baseline_frames + cap.press_frames + cap.release_frames;
+  std::ostringstream s;
+  s.precision(3);
+  s << frames << " frames " << map.width << "x" << map.height << " (" << cap.baseline_frames << " baseline + "
+    << cap.press_frames << " pressed"
+    << (cap.release_frames > 0 ? " + " + std::to_string(cap.release_frames) + " after removal" : std::string()) << " at "
+    << spec.timeline.fps << " fps): render " << cap.render_ms / frames
+    << " ms/frame, waiting for the encoder " << cap.write_ms / frames << " ms/frame";
+  say(s.str());
+  for (std::size_t k = 0; k < truth.hotspots.size(); ++k) {
+    const auto& h = truth.hotspots[k];
+    std::ostringstream line;
+    line.precision(3);
+    line << "hotspot " << k + 1 << ": peak " << h.peak_kpa << " kPa, " << h.area_above_5_5_mm2 << " mm² >= 5.5 kPa at chart ("
+         << h.centroid_uv_mm.x() << ", " << h.centroid_uv_mm.y() << ") mm";
+    std::cout << line.str() << "\n";
+  }
+}
+
+/// The captures: the part and its map as `clearfit map` reads them (the camera scaled), the true pressure field,
+/// the frames of both phases and their ground truth, written into `dir`; the names of the files written.
+std::vector<std::string> simulate_captures(const SimulateOptions& o, SimulationSection& spec, const std::filesystem::path& dir,
+                                           const Say& say) {
+  const Scene& sc = o.scene;
+  if (spec.field.sources.empty() && !spec.pressure_map)
+    throw InputError(o.scene_file, "key 'simulation.pressure'", "no pressure field: give sources or a map");
+  const std::unique_ptr<LoadedPart> part = load_part_scene(sc, true, std::cerr);
+  part->camera = scaled_camera(part->camera, spec.scale);
+  if (spec.pressure_map) read_pressure_map(spec, *part->chart);
+  sim::PressureTruth truth;
+  try {
+    truth = sim::make_pressure_truth(part->mesh, part->contact, *part->chart, spec.field);
+  } catch (const InputError& e) {
+    throw InputError(o.scene_file, "simulation.pressure", e.what());
+  }
+  auto t0 = std::chrono::steady_clock::now();
+  std::string cache_state;
+  const RefractionMap map = compute_part_map(*part, o.cache, &cache_state);
+  say("refraction map " + std::to_string(map.width) + " x " + std::to_string(map.height) + ", " +
+      std::to_string(map.stats.by_status[0]) + " pixels see the skin (" + std::to_string(seconds_since(t0)).substr(0, 4) +
+      " s, cache " + cache_state + ")");
+  t0 = std::chrono::steady_clock::now();
+  const ChartField drive = skin_drive(spec.skin, truth.pressure);
+  const FrameRenderers renderers(*part, map, drive, truth, spec, say);
+  say("skin model and per-pixel terms ready (" + std::to_string(seconds_since(t0)).substr(0, 4) + " s)");
+  std::optional<sim::PhotometricSchedule> photometry;
+  const sim::CaptureSummary cap = render_frames(renderers, spec, cv::Size(map.width, map.height), dir, photometry, say);
+  std::vector<std::string> written = write_capture_truth(sc, spec, *part, map, truth, cap, renderers, photometry, dir);
+  print_capture_summary(cap, map, spec, truth, say);
+  return written;
+}
+
+/// The calibration presses (presses.csv, presses-truth.json) written into `dir`; the names of the files written.
+std::vector<std::string> simulate_presses(const SimulationSection& spec, const std::filesystem::path& dir) {
+  const auto trials = sim::simulate_presses(spec.skin, spec.camera, *spec.presses, spec.seed);
+  sim::write_presses_csv(trials, dir / "presses.csv");
+  sim::write_presses_truth(dir / "presses-truth.json", spec.skin, spec.camera, *spec.presses, spec.seed);
+  return {"presses.csv", "presses-truth.json"};
+}
+
 }  // namespace
 
 Run add_simulate(CLI::App& app) {
-  struct Opts {
-    std::string scene_file, out, format;
-    long long seed = -1;
-    int crf = -1;
-    double scale = 0;
-    bool frames_only = false, no_presses = false, presses_only = false, quiet = false;
-    Scene scene;
-    SceneFields::Options options;
-    CacheOptions cache;
-  };
-  auto o = std::make_shared<Opts>();
+  auto o = std::make_shared<SimulateOptions>();
   CLI::App* sub = app.add_subcommand("simulate", "Synthetic captures (baseline and worn videos) of skin behind the part, with ground truth and calibration presses");
   sub->add_option("scene", o->scene_file, "Scene file (YAML) with a simulation: section")->required();
   sub->add_option("--out", o->out, "Output folder (default: simulation.out, else captures/ beside the scene)");
@@ -106,148 +293,20 @@ Run add_simulate(CLI::App& app) {
 
   return [o]() {
     const auto t_start = std::chrono::steady_clock::now();
-    read_scene(o->scene_file, o->scene, o->options);
-    const Scene& sc = o->scene;
-    if (!sc.simulation)
-      throw InputError(o->scene_file, "key 'simulation'", "missing: the scene has no simulation: section",
-                       "add one (see the simulation keys in README.md)");
-    SimulationSection spec = *sc.simulation;
-    if (o->seed >= 0) spec.seed = static_cast<std::uint64_t>(o->seed);
-    if (!o->format.empty()) spec.format = sim::parse_video_format(o->format);
-    if (o->frames_only) spec.format = sim::VideoFormat::png;
-    if (o->crf >= 0) spec.timeline.crf = o->crf;
-    if (o->scale > 0) spec.scale = o->scale;
-    if (!(spec.scale >= 0.05 && spec.scale <= 4)) throw InputError("", "--scale", "must be from 0.05 to 4");
+    SimulationSection spec = simulation_spec(*o);
     const std::filesystem::path out = !o->out.empty() ? std::filesystem::path(o->out)
                                       : !spec.out.empty() ? std::filesystem::path(spec.out)
-                                                          : sc.file.parent_path() / "captures";
-    const bool want_captures = !o->presses_only, want_presses = !o->no_presses && spec.presses.has_value();
-    if (o->presses_only && !spec.presses)
-      throw InputError(o->scene_file, "key 'simulation.presses'", "missing, but --presses-only was given");
+                                                          : o->scene.file.parent_path() / "captures";
     // Everything goes into a staging folder that replaces `out` at the end (crash-safe, see output_folder.hpp);
     // --presses-only adds to the folder as it is.
     StagedFolder staged(out, o->presses_only);
-    const std::filesystem::path& dir = staged.path();
-    auto say = [&](const std::string& s) {
+    const Say say = [&](const std::string& s) {
       if (!o->quiet) std::cerr << "clearfit simulate: " << s << "\n";
     };
     std::vector<std::string> written;
-
-    if (want_captures) {
-      if (spec.field.sources.empty() && !spec.pressure_map)
-        throw InputError(o->scene_file, "key 'simulation.pressure'", "no pressure field: give sources or a map");
-      // The part, its contact surface and chart, the camera and pose: as `clearfit map` reads them.
-      const std::unique_ptr<LoadedPart> part = load_part_scene(sc, true, std::cerr);
-      const Mesh& mesh = part->mesh;
-      const ContactSurface& contact = part->contact;
-      const Chart& chart = *part->chart;
-      part->camera = scaled_camera(part->camera, spec.scale);
-      const CameraModel& camera = part->camera;
-      if (spec.pressure_map) {
-        const cv::Mat m = sim::read_npy_2d(*spec.pressure_map);
-        ChartField f;
-        f.grid = ChartGrid::covering(chart.uv_min, chart.uv_max, spec.field.texel_mm);
-        if (m.rows != f.grid.height || m.cols != f.grid.width) {
-          std::ostringstream s;
-          s << "the map is " << m.cols << " x " << m.rows << " (width x height); the chart grid at texel_mm "
-            << spec.field.texel_mm << " is " << f.grid.width << " x " << f.grid.height;
-          throw InputError(*spec.pressure_map, "shape", s.str(), "render it on the grid of truth_pressure.npy");
-        }
-        f.value.assign(m.begin<float>(), m.end<float>());
-        spec.field.user_map = std::move(f);
-      }
-      sim::PressureTruth truth;
-      try {
-        truth = sim::make_pressure_truth(mesh, contact, chart, spec.field);
-      } catch (const InputError& e) {
-        throw InputError(o->scene_file, "simulation.pressure", e.what());
-      }
-      auto t0 = std::chrono::steady_clock::now();
-      std::string cache_state;
-      const RefractionMap map = compute_part_map(*part, o->cache, &cache_state);
-      say("refraction map " + std::to_string(map.width) + " x " + std::to_string(map.height) + ", " +
-          std::to_string(map.stats.by_status[0]) + " pixels see the skin (" + std::to_string(seconds_since(t0)).substr(0, 4) +
-          " s, cache " + cache_state + ")");
-      t0 = std::chrono::steady_clock::now();
-      const ChartField drive = skin_drive(spec.skin, truth.pressure);
-      const sim::CaptureRenderer renderer(map, drive, spec.skin, spec.camera, spec.seed);
-      // The not-worn frames through their own map: the part held off the skin, or absent.
-      std::optional<RefractionMap> baseline_map;
-      std::optional<sim::CaptureRenderer> baseline_renderer;
-      if (spec.baseline.part != BaselinePart::touching) {
-        baseline_map.emplace(compute_baseline_map(part->trace_scene(), camera, part->cam_from_part, part->map_options,
-                                                  spec.baseline.part, spec.baseline.gap_mm, map));
-        baseline_renderer.emplace(*baseline_map, drive, spec.skin, spec.camera, spec.seed);
-        std::ostringstream b;
-        b << "baseline: part " << to_string(spec.baseline.part) << ", skin " << spec.baseline.gap_mm << " mm beyond the contact surface, "
-          << baseline_map->stats.by_status[0] << " pixels see it";
-        say(b.str());
-      }
-      // Skin that slid and bulged between the phases: the worn frames read the texture displaced.
-      std::optional<sim::SkinDisplacement> skin_moved;
-      std::optional<sim::CaptureRenderer> worn_renderer;
-      if (spec.skin_motion.any()) {
-        skin_moved = sim::skin_displacement(spec.skin_motion, truth.pressure);
-        worn_renderer.emplace(map, drive, spec.skin, spec.camera, spec.seed, &*skin_moved);
-      }
-      say("skin model and per-pixel terms ready (" + std::to_string(seconds_since(t0)).substr(0, 4) + " s)");
-      int last_decile = -1;
-      std::optional<sim::PhotometricSchedule> photometry;
-      if (spec.photometric.any()) photometry.emplace(spec.photometric, spec.camera, spec.timeline, cv::Size(map.width, map.height));
-      sim::CaptureSummary cap = sim::render_captures(
-          worn_renderer ? *worn_renderer : renderer, spec.skin, spec.timeline, spec.camera, spec.format, dir, spec.seed, [&](int done, int total) {
-            const int decile = 10 * done / total;
-            if (decile != last_decile) {
-              last_decile = decile;
-              say("frame " + std::to_string(done) + "/" + std::to_string(total));
-            }
-          }, photometry ? &*photometry : nullptr,
-          baseline_renderer ? &*baseline_renderer : worn_renderer ? &renderer : nullptr);
-      cap.baseline = spec.baseline;
-      std::vector<std::pair<std::string, std::string>> inputs{{"scene", sc.file.string()}, {"mesh", sc.part.mesh}, {"camera", sc.part.camera}};
-      if (!sc.part.pose.empty()) inputs.emplace_back("pose", sc.part.pose);
-      if (spec.pressure_map) inputs.emplace_back("pressure_map", *spec.pressure_map);
-      if (spec.scale != 1.0) {
-        write_cameramodel(camera, dir / "camera.cameramodel");
-        inputs.emplace_back("scaled_camera", "camera.cameramodel");
-        written.push_back("camera.cameramodel");
-      }
-      sim::write_truth(dir, spec.field, truth, spec.skin, spec.camera, spec.timeline, cap, spec.format,
-                       {map.width, map.height}, spec.seed, inputs);
-      for (const auto& f : cap.files) written.push_back(f);
-      for (const char* f : {"truth.json", "truth_pressure.npy", "truth_vertex_pressure.npy"}) written.emplace_back(f);
-      if (photometry)
-        for (const auto& f : photometry->write_truth(dir)) written.push_back(f);
-      record_preset(dir / "truth.json", spec);
-      if (skin_moved) {
-        sim::write_displacement_npy(*skin_moved, dir / "truth_displacement.npy");
-        written.emplace_back("truth_displacement.npy");
-      }
-      const int frames = cap.baseline_frames + cap.press_frames + cap.release_frames;
-      std::ostringstream s;
-      s.precision(3);
-      s << frames << " frames " << map.width << "x" << map.height << " (" << cap.baseline_frames << " baseline + "
-        << cap.press_frames << " pressed"
-        << (cap.release_frames > 0 ? " + " + std::to_string(cap.release_frames) + " after removal" : std::string()) << " at "
-        << spec.timeline.fps << " fps): render " << cap.render_ms / frames
-        << " ms/frame, waiting for the encoder " << cap.write_ms / frames << " ms/frame";
-      say(s.str());
-      for (std::size_t k = 0; k < truth.hotspots.size(); ++k) {
-        const auto& h = truth.hotspots[k];
-        std::ostringstream line;
-        line.precision(3);
-        line << "hotspot " << k + 1 << ": peak " << h.peak_kpa << " kPa, " << h.area_above_5_5_mm2 << " mm² >= 5.5 kPa at chart ("
-             << h.centroid_uv_mm.x() << ", " << h.centroid_uv_mm.y() << ") mm";
-        std::cout << line.str() << "\n";
-      }
-    }
-    if (want_presses) {
-      const auto trials = sim::simulate_presses(spec.skin, spec.camera, *spec.presses, spec.seed);
-      sim::write_presses_csv(trials, dir / "presses.csv");
-      sim::write_presses_truth(dir / "presses-truth.json", spec.skin, spec.camera, *spec.presses, spec.seed);
-      written.emplace_back("presses.csv");
-      written.emplace_back("presses-truth.json");
-    }
+    if (!o->presses_only) written = simulate_captures(*o, spec, staged.path(), say);
+    if (!o->no_presses && spec.presses)
+      for (auto& f : simulate_presses(spec, staged.path())) written.push_back(std::move(f));
     staged.commit();
     std::cout << "wrote into " << out.string() << ":";
     for (const auto& w : written) std::cout << " " << w;
