@@ -188,7 +188,8 @@ Mesh load_mesh(const fs::path& path, const ImportOptions& options) {
   const std::string ext = detail::lower_extension(path);
   detail::RawMesh raw;
   if (ext == ".stl") raw = detail::read_stl(path);
-  else if (ext == ".ply" || ext == ".off") raw = detail::read_ply_off(path, ext);
+  else if (ext == ".ply") raw = detail::read_ply(path);
+  else if (ext == ".off") raw = detail::read_off(path);
   else if (ext == ".obj") raw = detail::read_obj(path);
   else if (ext == ".3mf") raw = detail::read_3mf(path);
   else if (ext == ".gltf" || ext == ".glb") raw = detail::read_gltf(path, ext == ".glb");

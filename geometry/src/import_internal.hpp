@@ -68,10 +68,10 @@ struct PlyOffCounts {
   std::uint64_t vertices = 0, faces = 0;
 };
 PlyOffCounts check_ply(const std::string& text, const std::string& name);
-PlyOffCounts check_off(const std::string& text, const std::string& name);
 
 RawMesh read_stl(const std::filesystem::path& path);
-RawMesh read_ply_off(const std::filesystem::path& path, const std::string& ext);  // OpenMesh
+RawMesh read_ply(const std::filesystem::path& path);                              // checked, then OpenMesh
+RawMesh read_off(const std::filesystem::path& path);                              // import_ply_off_check.cpp
 RawMesh read_obj(const std::filesystem::path& path);                              // tinyobjloader
 RawMesh read_3mf(const std::filesystem::path& path);                              // lib3mf
 RawMesh read_gltf(const std::filesystem::path& path, bool binary);               // tinygltf

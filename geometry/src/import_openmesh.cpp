@@ -1,4 +1,5 @@
-// PLY and OFF through OpenMesh's readers, and STL/PLY/OFF writing through its writers.
+// PLY through OpenMesh's reader, and STL/PLY/OFF writing through its writers (OFF is read
+// in import_ply_off_check.cpp).
 // Reading goes through our own BaseImporter, not a mesh kernel: OpenMesh's mesh
 // importer drops faces with repeated vertices and re-adds non-manifold faces
 // with duplicated vertices, which would break the file's face order; the
@@ -14,9 +15,7 @@
 #include <OpenMesh/Core/Mesh/PolyMesh_ArrayKernelT.hh>
 
 #include <array>
-#include <charconv>
 #include <mutex>
-#include <sstream>
 
 namespace clearfit::detail {
 namespace {
@@ -118,10 +117,9 @@ class Recorder : public IO::BaseImporter {
 
 }  // namespace
 
-RawMesh read_ply_off(const std::filesystem::path& path, const std::string& ext) {
+RawMesh read_ply(const std::filesystem::path& path) {
   const std::string name = display(path);
-  const std::string text = read_file_bytes(path);
-  const PlyOffCounts declared = ext == ".off" ? check_off(text, name) : check_ply(text, name);
+  const PlyOffCounts declared = check_ply(read_file_bytes(path), name);
   RawMesh raw;
   Recorder recorder(raw);
   IO::Options opt;
@@ -129,21 +127,12 @@ RawMesh read_ply_off(const std::filesystem::path& path, const std::string& ext) 
   {
     OmQuiet quiet;
     try {
-      if (ext == ".off") {
-        // OpenMesh's OFF reader knows no '#' comments (it reads garbage): feed it the text without them.
-        std::string clean = text;
-        for (size_t i = clean.find('#'); i != std::string::npos; i = clean.find('#', i))
-          while (i < clean.size() && clean[i] != '\n') clean[i++] = ' ';
-        std::istringstream in(clean);
-        ok = IO::IOManager().read(in, "off", recorder, opt);
-      } else {
-        ok = IO::IOManager().read(path.string(), recorder, opt);
-      }
+      ok = IO::IOManager().read(path.string(), recorder, opt);
     } catch (const std::exception& e) {
       throw InputError(name, "", std::string("OpenMesh failed to read it: ") + e.what());
     }
   }
-  if (!ok) throw InputError(name, "", "OpenMesh could not read it", "check the file is a valid " + ext.substr(1) + " file");
+  if (!ok) throw InputError(name, "", "OpenMesh could not read it", "check the file is a valid PLY file");
   if (raw.vertices.size() != declared.vertices || raw.polygons.size() != declared.faces)
     throw InputError(name, "", "declares " + std::to_string(declared.vertices) + " vertices and " +
                                    std::to_string(declared.faces) + " faces but " + std::to_string(raw.vertices.size()) +

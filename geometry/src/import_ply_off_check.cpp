@@ -1,9 +1,14 @@
-// The structure of a PLY or OFF file, checked before OpenMesh reads it.
+// OFF, read here, and the structure of a PLY file, checked before OpenMesh reads it.
 // OpenMesh's readers trust their input: a property declared before any element,
 // a damaged 'element' line or a negative list length crash them or make them
 // allocate without bound. Every count here is checked against what the file can
 // hold (one token or one byte per value at least) before anything is allocated,
 // so what reaches OpenMesh is a file whose every element and list fits.
+// OFF is not handed to OpenMesh at all: its reader takes the header from the
+// file's first line only and then reads the counts with `>>` into variables it
+// never initialised, so an OFF whose first line is blank or a comment made it
+// add faces without bound (found by fuzz_off); a face colour after the indices
+// is read as the next face's length. The OFF checks below read the mesh as they go.
 #include "import_internal.hpp"
 
 #include <algorithm>
@@ -48,17 +53,22 @@ double finite_number(std::string_view t, const std::string& name, const std::str
 
 // ---- OFF -------------------------------------------------------------------
 
-// The OFF body: `nv` vertex lines of numbers, then `nf` face lines "k i1 ... ik [colour]".
-void check_off_body(const std::string& text, size_t pos, int line_no, const PlyOffCounts& d, const std::string& name) {
+// The OFF body: `nv` vertex lines "x y z [more]", then `nf` face lines "k i1 ... ik [colour]",
+// read into `raw` (positions and faces; the rest of a line is ignored).
+void read_off_body(const std::string& text, size_t pos, int line_no, const PlyOffCounts& d, const std::string& name,
+                   RawMesh& raw) {
   std::uint64_t body_line = 0;
   for_lines(text, pos, line_no, true, [&](int line, const std::vector<std::string_view>& tok) {
-    if (body_line >= d.vertices + d.faces) return false;  // trailing lines are OpenMesh's business (it ignores them)
+    if (body_line >= d.vertices + d.faces) return false;  // trailing lines are ignored
     const bool vertex = body_line < d.vertices;
     const std::uint64_t index = vertex ? body_line : body_line - d.vertices;
     const std::string where = "line " + std::to_string(line) + (vertex ? " (vertex " : " (face ") + std::to_string(index) + ")";
     for (auto t : tok) finite_number(t, name, where);
     if (vertex && tok.size() < 3) throw InputError(name, where, "a vertex line needs x y z", "fix or re-export the mesh");
-    if (!vertex) {
+    if (vertex) {
+      raw.vertices.emplace_back(finite_number(tok[0], name, where), finite_number(tok[1], name, where),
+                                finite_number(tok[2], name, where));
+    } else {
       std::int64_t k = -1;
       auto [ptr, ec] = std::from_chars(tok[0].data(), tok[0].data() + tok[0].size(), k);
       if (ec != std::errc() || ptr != tok[0].data() + tok[0].size() || k < 0 || static_cast<std::uint64_t>(k) + 1 > tok.size())
@@ -66,6 +76,15 @@ void check_off_body(const std::string& text, size_t pos, int line_no, const PlyO
                          "a face line is 'k i1 ... ik' with k its number of vertices; found '" + std::string(tok[0].substr(0, 40)) +
                              "' and " + std::to_string(tok.size() - 1) + " indices",
                          "fix or re-export the mesh");
+      std::vector<int> poly(static_cast<size_t>(k));
+      for (std::int64_t i = 0; i < k; ++i) {
+        const std::string_view t = tok[static_cast<size_t>(i) + 1];
+        auto [end, err] = std::from_chars(t.data(), t.data() + t.size(), poly[static_cast<size_t>(i)]);
+        if (err != std::errc() || end != t.data() + t.size())
+          throw InputError(name, where, "'" + std::string(t.substr(0, 40)) + "' is not a vertex index",
+                           "vertex indices are whole numbers from 0, one per vertex of the face");
+      }
+      raw.polygons.push_back(std::move(poly));
     }
     ++body_line;
     return true;
@@ -275,7 +294,9 @@ void check_ply_binary(const std::string& text, const PlyHeader& h, const std::st
 
 }  // namespace
 
-PlyOffCounts check_off(const std::string& text, const std::string& name) {
+RawMesh read_off(const std::filesystem::path& path) {
+  const std::string name = display(path);
+  const std::string text = read_file_bytes(path);
   PlyOffCounts d;
   std::vector<std::string_view> head;
   LineCursor lines(text);
@@ -298,8 +319,9 @@ PlyOffCounts check_off(const std::string& text, const std::string& name) {
     throw InputError(name, "line 1", "the " + std::string(head[0].substr(0, 20)) + (binary ? " BINARY" : "") + " variant of OFF is not supported",
                      "save the mesh as plain 3D ASCII OFF, PLY or STL");
   // Counts on the header's last line end the header: the body starts on the next line.
-  check_off_body(text, lines.pos(), lines.line_no(), d, name);
-  return d;
+  RawMesh raw;
+  read_off_body(text, lines.pos(), lines.line_no(), d, name, raw);
+  return raw;
 }
 
 PlyOffCounts check_ply(const std::string& text, const std::string& name) {

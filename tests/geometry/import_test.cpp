@@ -578,6 +578,46 @@ TEST_F(Import, DamagedPlyAndOffStructureIsRefusedBeforeOpenMesh) {
   }
 }
 
+// OpenMesh's OFF reader takes the header from the first line only and then reads
+// the counts into variables it never initialised: an OFF whose first line is a
+// comment or blank added faces without bound (fuzz_off found it). It also read a
+// face's colour as the next face's length. OFF is now read by clearfit itself.
+TEST_F(Import, OffWithLeadingCommentAndFaceColoursIsReadAsWritten) {
+  const std::string body = "0 0 0\n1 0 0\n0 1 0\n0 0 1\n3 0 1 2 4000000000 0 0\n3 0 3 1 0.5 0.5 0.5 1\n";
+  for (const std::string head : {"# written by hand\nCOFF\n4 2 0\n", "\nOFF\n4 2 0\n", "OFF 4 2 0\n"}) {
+    SCOPED_TRACE(head);
+    const fs::path p = text("c.off", head + body);
+    const Mesh m = load_mesh(p);
+    EXPECT_EQ(m.num_vertices(), 4);
+    EXPECT_EQ(m.faces, (std::vector<std::array<int, 3>>{{0, 1, 2}, {0, 3, 1}}));
+    EXPECT_EQ(m.corner(1, 1), Vec3(0, 0, 1));
+  }
+  const fs::path bad = text("i.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n0 1 0\n3 0 1 2.5\n");
+  expect_input_error([&] { load_mesh(bad); }, bad, "line 6 (face 0): '2.5' is not a vertex index");
+}
+
+// Every input the fuzzers found (fuzz/regressions/FORMAT/, a crash, a leak or a
+// timeout once) is read or refused with an InputError naming the file, and nothing else.
+TEST_F(Import, FuzzRegressionInputsAreReadOrRefused) {
+  const fs::path root = fs::path(CLEARFIT_TEST_DATA_DIR) / ".." / ".." / "fuzz" / "regressions";
+  int inputs = 0;
+  for (const char* format : {"stl", "obj", "ply", "off", "3mf", "gltf", "glb"}) {
+    if (!fs::is_directory(root / format)) continue;
+    for (const auto& entry : fs::directory_iterator(root / format)) {
+      SCOPED_TRACE(entry.path().string());
+      const fs::path p = file(entry.path().filename().string() + "." + format);
+      fs::copy_file(entry.path(), p, fs::copy_options::overwrite_existing);
+      ++inputs;
+      try {
+        load_mesh(p);
+      } catch (const InputError& e) {
+        EXPECT_EQ(e.file(), p.string()) << e.what();
+      }
+    }
+  }
+  EXPECT_GT(inputs, 0) << "no regression inputs under " << root;
+}
+
 TEST_F(Import, ThreeMfWithoutMeshAndBroken3mf) {
   const auto junk = text("junk.3mf", "this is not a zip package");
   expect_input_error([&] { load_mesh(junk); }, junk, "lib3mf could not read it");
