@@ -3,6 +3,7 @@
 #include <clearfit/cli/scene.hpp>
 
 #include <clearfit/error.hpp>
+#include <clearfit/yaml_key.hpp>
 #include <clearfit/utf8.hpp>
 #include <clearfit/geometry/import.hpp>
 
@@ -23,7 +24,7 @@ void SceneReader::fail(const YAML::Node& node, const std::string& key, const std
 void SceneReader::only_keys(const YAML::Node& map, const std::string& prefix, const std::set<std::string>& allowed) const {
   if (!map.IsMap()) fail(map, prefix, "expected a mapping of keys to values");
   for (const auto& kv : map) {
-    const auto key = kv.first.as<std::string>();
+    const auto key = yaml_key(kv.first, file_.string());
     if (!allowed.count(key)) {
       std::string list;
       for (const auto& a : allowed) list += (list.empty() ? "" : ", ") + a;
@@ -39,7 +40,7 @@ void SceneReader::no_duplicate_keys(const YAML::Node& node, const std::string& p
   if (!node.IsMap()) return;
   std::set<std::string> seen;
   for (const auto& kv : node) {
-    const std::string key = kv.first.IsScalar() ? kv.first.Scalar() : std::string("(a list or map as key)");
+    const std::string key = yaml_key(kv.first, file_.string());
     const std::string full = prefix.empty() ? key : prefix + "." + key;
     if (!seen.insert(key).second) fail(kv.first, full, "is given twice; keep one");
     no_duplicate_keys(kv.second, full);

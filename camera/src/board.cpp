@@ -2,6 +2,7 @@
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/camera/board.hpp>
 #include <clearfit/error.hpp>
+#include <clearfit/yaml_key.hpp>
 
 #include "apriltag_family_internal.hpp"
 
@@ -253,7 +254,7 @@ Board read_board(const std::filesystem::path& path) {
   static const std::set<std::string> known{"schema", "family",   "rows",       "cols",        "tag_mm",
                                            "gap_mm", "first_id", "grid_width", "grid_height", "spacing_mm"};
   for (const auto& kv : root) {
-    const std::string key = kv.first.as<std::string>();
+    const std::string key = yaml_key(kv.first, file);
     if (!known.count(key))
       throw InputError(
           file, where(kv.first, key), "unknown key",

@@ -1,6 +1,7 @@
 // The part's pose from AprilTags with known corners in the part frame.
 #include <clearfit/camera/tag_pose.hpp>
 #include <clearfit/error.hpp>
+#include <clearfit/yaml_key.hpp>
 #include <clearfit/geometry/ray_index.hpp>
 
 #include "apriltag_family_internal.hpp"
@@ -120,7 +121,7 @@ TagLayout read_tag_layout(const std::filesystem::path& path) {
   }
   if (!root.IsMap()) throw InputError(file, "", "expected a map with keys schema, family, tags");
   for (const auto& kv : root) {
-    const std::string key = kv.first.as<std::string>();
+    const std::string key = yaml_key(kv.first, file);
     if (key != "schema" && key != "family" && key != "tags")
       throw InputError(file, "key '" + key + "' (" + line_of(kv.first) + ")", "unknown key",
                        "known keys: schema family tags");
@@ -141,7 +142,7 @@ TagLayout read_tag_layout(const std::filesystem::path& path) {
     const std::string where = "tag at " + line_of(n);
     if (!n.IsMap()) throw InputError(file, where, "expected {id, corners_mm, through_part}");
     for (const auto& kv : n) {
-      const std::string key = kv.first.as<std::string>();
+      const std::string key = yaml_key(kv.first, file);
       if (key != "id" && key != "corners_mm" && key != "through_part")
         throw InputError(file, where + ", key '" + key + "'", "unknown key",
                          "known keys: id corners_mm through_part");

@@ -1,4 +1,5 @@
 #include <clearfit/error.hpp>
+#include <clearfit/yaml_key.hpp>
 #include <clearfit/study/manifest.hpp>
 
 #include <yaml-cpp/yaml.h>
@@ -26,7 +27,7 @@ class Reader {
     if (!map.IsMap()) fail(map, where, "expected a mapping of keys to values");
     std::set<std::string> seen;
     for (const auto& kv : map) {
-      const auto key = kv.first.as<std::string>();
+      const auto key = yaml_key(kv.first, file_.string());
       const std::string full = where.empty() ? key : where + "." + key;
       if (!allowed.count(key)) fail(kv.first, full, "unknown key");
       if (!seen.insert(key).second) fail(kv.first, full, "given twice");

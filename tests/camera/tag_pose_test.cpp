@@ -232,6 +232,8 @@ TEST_F(LayoutFile, ReadsTagsAndRefusesBadOnes) {
   EXPECT_NE(error_of("schema: clearfit.tag-layout/1\nfamily: tag99\ntags: []\n").find("family"),
             std::string::npos);
   EXPECT_NE(error_of(head + "  - {id: 3, corner: 1}\n").find("unknown key"), std::string::npos);
+  EXPECT_NE(error_of(head + "  - {[id]: 3}\n").find("line 4: a key is a list, a map or empty"), std::string::npos);
+  EXPECT_NE(error_of("{a: 1}: 2\n").find("line 1: a key is a list, a map or empty"), std::string::npos);
 }
 
 }  // namespace

@@ -77,6 +77,8 @@ TEST_F(Scene, BadKeysAndTypesAreNamedWithTheirLine) {
   expect_input_error({"map", "--scene", "part/missing.yaml"}, {"missing.yaml"});
   scene("");
   expect_input_error({"map", "--scene", "part/scene.yaml"}, {"scene.yaml", "empty"});
+  scene("mesh: slab.obj\n[map]: 1\n");
+  expect_input_error({"map", "--scene", "part/scene.yaml"}, {"scene.yaml", "line 2", "a key is a list, a map or empty"});
 }
 
 TEST_F(Scene, RulesNameTheKeyOrTheOptionWithTheValue) {
