@@ -126,8 +126,11 @@ Run add_assess(CLI::App& app) {
       std::cout << "pressure: peak " << fixed(a.peak_kpa) << " kPa, mean " << fixed(a.mean_kpa) << " kPa over the seen skin\n";
     std::cout << a.hotspots.size() << (a.hotspots.size() == 1 ? " hotspot" : " hotspots") << "\n";
     for (const Hotspot& h : a.hotspots) {
-      std::cout << "  #" << h.id << ": peak " << fixed(h.peak, a.calibrated ? 1 : 4) << (a.calibrated ? " ± " + fixed(h.peak_sigma) + " kPa" : "")
-                << ", area";
+      // A peak without σ lies beyond the calibration's range: it is a lower bound.
+      const std::string unit = !a.calibrated                   ? ""
+                               : std::isfinite(h.peak_sigma) ? " ± " + fixed(h.peak_sigma) + " kPa"
+                                                             : " kPa or more (beyond the calibration's range)";
+      std::cout << "  #" << h.id << ": peak " << fixed(h.peak, a.calibrated ? 1 : 4) << unit << ", area";
       for (const HotspotLevel& l : h.levels)
         std::cout << (&l == &h.levels.front() ? " " : ", ") << fixed(l.area_mm2, 2) << " mm² >= "
                   << (a.calibrated ? fixed(l.threshold) + " kPa" : fixed(l.threshold, 4));
