@@ -76,47 +76,6 @@ void add_spatial_noise(BlanchingSignal& s) {
   s.noise_sigma = median(std::move(sig));
 }
 
-/// The local spatial term (BlanchingOptions::local_spatial_noise).
-void add_local_spatial_noise(BlanchingSignal& s, double window_mm) {
-  const ChartGrid& g = s.y.grid;
-  cv::Mat neg2(g.height, g.width, CV_32F, cv::Scalar(0)), neg(g.height, g.width, CV_32F, cv::Scalar(0));
-  cv::Mat tmp2(g.height, g.width, CV_32F, cv::Scalar(0)), seen(g.height, g.width, CV_32F, cv::Scalar(0));
-  for (int j = 0; j < g.height; ++j)
-    for (int i = 0; i < g.width; ++i) {
-      const std::size_t k = g.index(i, j);
-      const float y = s.y.value[k], t = s.sigma_y.value[k];
-      if (!std::isfinite(y) || !std::isfinite(t)) continue;
-      seen.at<float>(j, i) = 1;
-      if (y < 0) neg2.at<float>(j, i) = y * y, neg.at<float>(j, i) = 1, tmp2.at<float>(j, i) = t * t;
-    }
-  const double w = window_mm / g.texel_mm;
-  for (cv::Mat* m : {&neg2, &neg, &tmp2, &seen}) cv::GaussianBlur(*m, *m, cv::Size(), w, w, cv::BORDER_CONSTANT);
-  // A window counts when a fifth of its seen texels are negative (unpressed skin has half).
-  std::vector<float> extra(g.size(), kNaN);
-  long long known = 0;
-  for (int j = 0; j < g.height; ++j)
-    for (int i = 0; i < g.width; ++i) {
-      const std::size_t k = g.index(i, j);
-      if (!std::isfinite(s.y.value[k]) || !std::isfinite(s.sigma_y.value[k])) continue;
-      const float n = neg.at<float>(j, i), all = seen.at<float>(j, i);
-      if (!(n > 0.2f * all && n > 1e-6f)) continue;
-      extra[k] = std::max(0.f, (neg2.at<float>(j, i) - tmp2.at<float>(j, i)) / n);
-      ++known;
-    }
-  if (known == 0) return;
-  std::vector<double> sig, local;
-  for (std::size_t k = 0; k < g.size(); ++k) {
-    float& v = s.sigma_y.value[k];
-    if (!std::isfinite(v) || !std::isfinite(s.y.value[k])) continue;
-    const float e2 = std::isfinite(extra[k]) ? extra[k] : 0.f;
-    v = std::sqrt(v * v + e2);
-    sig.push_back(v), local.push_back(std::sqrt(e2));
-  }
-  s.noise_sigma = median(std::move(sig));
-  std::nth_element(local.begin(), local.begin() + static_cast<std::ptrdiff_t>(0.95 * (local.size() - 1)), local.end());
-  s.local_noise_sigma_p95 = local[static_cast<std::size_t>(0.95 * (local.size() - 1))];
-}
-
 }  // namespace
 
 ChartField resample_to_chart(const PhaseAverage& average, const InverseMap& inverse) {
@@ -176,8 +135,6 @@ BlanchingSignal compute_blanching(const PhaseAverage& baseline, const PhaseAvera
                                   const BlanchingOptions& options, const InverseMap* baseline_inverse) {
   if (!(options.smoothing_mm >= 0) || !std::isfinite(options.smoothing_mm))
     throw std::invalid_argument("compute_blanching: smoothing_mm must be >= 0");
-  if (options.local_spatial_noise && !(options.local_noise_window_mm > 0 && std::isfinite(options.local_noise_window_mm)))
-    throw std::invalid_argument("compute_blanching: local_noise_window_mm must be > 0");
   BlanchingSignal s;
   const ChartGrid g = grid_of(inverse);
   const InverseMap& base_inv = baseline_inverse ? *baseline_inverse : inverse;
@@ -252,21 +209,7 @@ BlanchingSignal compute_blanching(const PhaseAverage& baseline, const PhaseAvera
   for (auto& r : raw.value)
     if (std::isfinite(r)) r -= static_cast<float>(s.reference_log_ratio);
 
-  if (options.ratio_of_smoothed) {
-    // Both greens averaged over the same texels (raw's), then their ratio; T and V ratios stay divided out.
-    ChartField gw = empty_field(g), gb = empty_field(g);
-    for (std::size_t k = 0; k < g.size(); ++k)
-      if (std::isfinite(raw.value[k])) {
-        gb.value[k] = s.baseline_green.value[k];
-        gw.value[k] = gb.value[k] * std::exp(raw.value[k]);
-      }
-    const ChartField sw = smooth_field(gw, options.smoothing_mm), sb = smooth_field(gb, options.smoothing_mm);
-    s.y = empty_field(g);
-    for (std::size_t k = 0; k < g.size(); ++k)
-      if (std::isfinite(raw.value[k]) && sw.value[k] > 0 && sb.value[k] > 0) s.y.value[k] = std::log(sw.value[k] / sb.value[k]);
-  } else {
-    s.y = smooth_field(raw, options.smoothing_mm);
-  }
+  s.y = smooth_field(raw, options.smoothing_mm);
   // Noise after smoothing: independent camera pixels inside the kernel (4π σ_px²).
   const double sigma_px = options.smoothing_mm / g.texel_mm * pixels_per_texel(inverse);
   const float reduction = static_cast<float>(1.0 / std::sqrt(std::max(1.0, 4 * M_PI * sigma_px * sigma_px)));
@@ -279,7 +222,6 @@ BlanchingSignal compute_blanching(const PhaseAverage& baseline, const PhaseAvera
     }
   s.noise_sigma = s.temporal_noise_sigma = median(std::move(sig));
   if (options.spatial_noise) add_spatial_noise(s);
-  if (options.local_spatial_noise) add_local_spatial_noise(s, options.local_noise_window_mm);
   long long above = 0;
   for (std::size_t k = 0; k < g.size(); ++k)
     if (std::isfinite(s.y.value[k]) && s.y.value[k] > 3 * std::max(s.sigma_y.value[k], 1e-6f)) ++above;

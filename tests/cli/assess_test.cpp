@@ -124,17 +124,6 @@ TEST_F(AssessCli, FindsTheSimulatedHotspotsWhereTheTruthPutsThem) {
   }
   EXPECT_GT(estimates, 100);
   EXPECT_EQ(with_sigma, estimates);
-  // The default baseline is held 1 mm off the skin: the phases see a texel at different pixels. Every
-  // place found is a true one, the glare mask is the one highlight (about 7 % of the seen skin on a
-  // touching capture of this scene; a comparison of pixels that do not see the same skin masked 30 %
-  // and more), and the image's fall-off (divided out) is the simulator's.
-  int places = 0;
-  for (const auto& h : report["hotspots"]) places += h["threshold_kpa"].get<double>() == 4.3;
-  EXPECT_EQ(places, static_cast<int>(truth["hotspots"].size())) << "false places at 4.3 kPa";
-  EXPECT_LT(report["glare"]["fraction_of_seen_pixels"].get<double>(), 0.15);
-  const auto& vignetting = report["baseline_geometry"]["vignetting"];
-  ASSERT_TRUE(vignetting["estimated"].get<bool>()) << vignetting;
-  EXPECT_NEAR(-vignetting["v_at_corner"].get<double>(), truth["camera"]["falloff"].get<double>(), 0.03) << vignetting;
   for (const auto& th : truth["hotspots"]) {
     const NearestHotspot h = nearest_hotspot(report, th);
     const double true_peak = th["peak_kpa"].get<double>();

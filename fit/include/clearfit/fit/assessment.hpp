@@ -14,7 +14,6 @@
 #include <clearfit/fit/phase_registration.hpp>
 #include <clearfit/fit/pressure_model.hpp>
 #include <clearfit/fit/timeseries.hpp>
-#include <clearfit/fit/vignetting.hpp>
 #include <clearfit/refraction/inverse_map.hpp>
 #include <clearfit/refraction/map.hpp>
 
@@ -41,7 +40,6 @@ struct AssessmentOptions {
   bool normalise_gains = true;       ///< divide each chunk by its exposure / white-balance / flicker gain (photometric.hpp)
   GapSearchOptions gap;              ///< estimating the not-worn capture's gap (baseline_gap.hpp)
   PhaseRegistrationOptions phase_registration;  ///< skin that slid or bulged between the phases (phase_registration.hpp)
-  VignettingOptions vignetting;      ///< the fall-off between phases seen at different pixels (vignetting.hpp)
   std::vector<double> thresholds_kpa{4.3, 5.5};  ///< capillary closing, the study's blanching onset
   /// Without a calibration: thresholds on the signal y, in multiples of the
   /// noise (default 5 σ) unless given as values.
@@ -87,7 +85,6 @@ struct BaselineGeometryReport {
   bool gap_estimated = false;           ///< estimated from the captures (auto)
   std::optional<GapEstimate> estimate;  ///< the estimate's details (auto)
   long long pixels_seeing_skin = 0;     ///< in the baseline's own map
-  VignettingEstimate vignetting;        ///< the fall-off divided out of the comparison (own geometry only)
 };
 
 struct Assessment {

@@ -38,23 +38,6 @@ struct BlanchingOptions {
   /// transmittances when each has its own map (baseline_map.hpp), subtracted
   /// from y_raw; empty: none (one map, they cancel).
   std::vector<float> log_transmittance_ratio;
-  /// y = ln(smooth(G) / smooth(G0)) instead of smooth(ln(G / G0)): the phases' greens are averaged
-  /// before their ratio is taken. Needed when the phases see a texel through pixels of different
-  /// footprints (a baseline with its own geometry): a pixel averages the skin's texture over its
-  /// footprint, and E[ln G] grows as the footprint does (Jensen: by about half the texture's
-  /// variance left in the pixel), so the log ratio of differently sampled texture is biased where
-  /// the footprints differ (the band's oblique ends: false places of 5–6 kPa); averaging the linear
-  /// greens over the same texels first removes it. Where one map serves both phases the two agree.
-  bool ratio_of_smoothed = false;
-  /// The noise also holds a local spatial term: texture that does not cancel between the phases
-  /// (sampled by pixels of different footprints, aliased differently: the band's oblique ends with a
-  /// held baseline). Per texel, the mean square of the smoothed feature's negative values within a
-  /// Gaussian window of `local_noise_window_mm` (blanching only raises the feature, so the negative
-  /// side is the error's, whatever is pressed), less the frames' own share, is added to sigma_y in
-  /// quadrature; a window with too few negative texels (a fifth of its seen ones: blanched skin)
-  /// adds nothing, so a pressed place keeps its own noise.
-  bool local_spatial_noise = false;
-  double local_noise_window_mm = 2.0;
 };
 
 struct BlanchingSignal {
@@ -67,7 +50,6 @@ struct BlanchingSignal {
   double noise_sigma = 0;          ///< median of sigma_y over the seen texels
   double temporal_noise_sigma = 0; ///< noise_sigma from the frames' spread alone
   double spatial_noise_sigma = 0;  ///< the spatial term added to every texel's sigma_y in quadrature (spatial_noise; else 0)
-  double local_noise_sigma_p95 = 0; ///< local_spatial_noise: the 95th percentile of the local term over the seen texels
   long long texels_seen = 0;
   std::vector<std::string> warnings;
 };
