@@ -70,6 +70,11 @@ if(LIB3MF_INCLUDE_DIR AND LIB3MF_LIBRARY)
   set(LIB3MF_FOUND TRUE)
 endif()
 clearfit_require(LIB3MF_FOUND "lib3mf" lib3mf-dev)
+# libzip: clearfit checks a 3MF's zip entries (declared sizes against packed bytes) before lib3mf reads it.
+if(PkgConfig_FOUND)
+  pkg_check_modules(LIBZIP QUIET IMPORTED_TARGET libzip)
+endif()
+clearfit_require(LIBZIP_FOUND "libzip" libzip-dev)
 if(NOT TARGET clearfit_dep::lib3mf)
   add_library(clearfit_dep::lib3mf UNKNOWN IMPORTED)
   set_target_properties(clearfit_dep::lib3mf PROPERTIES

@@ -3,6 +3,7 @@
 #   scripts/bootstrap.sh sample   install dependencies, build (Release), run clearfit assess on the bundled wristband sample
 #   scripts/bootstrap.sh test     install dependencies, build (Release), run the whole test suite (ctest)
 #   scripts/bootstrap.sh asan     same as test, in a separate AddressSanitizer + UBSan build (build-asan/)
+#   scripts/bootstrap.sh fuzz     install dependencies plus clang and libFuzzer's runtime, build every fuzz target (build-fuzz/)
 #   scripts/bootstrap.sh deps     only install the dependencies
 # Idempotent and non-interactive. Needs root or sudo for apt-get.
 set -euo pipefail
@@ -16,14 +17,16 @@ PACKAGES=(
   slurm-wlm munge python3-sklearn libgetfem-dev
   chromium
 )
+# Only for the fuzz build (scripts/fuzz.sh, docs/fuzzing.md): clang, its libFuzzer and sanitizer runtimes.
+FUZZ_PACKAGES=(clang libclang-rt-14-dev)
 
-install_deps() {
+install_deps() {  # install_deps [extra packages...]
   local missing=()
-  for p in "${PACKAGES[@]}"; do
+  for p in "${PACKAGES[@]}" "$@"; do
     dpkg-query -W -f='${Status}' "$p" 2>/dev/null | grep -q "install ok installed" || missing+=("$p")
   done
   if [ ${#missing[@]} -eq 0 ]; then
-    echo "== dependencies: all ${#PACKAGES[@]} packages present"
+    echo "== dependencies: all $((${#PACKAGES[@]} + $#)) packages present"
     return
   fi
   echo "== installing ${#missing[@]} missing packages: ${missing[*]}"
@@ -85,8 +88,13 @@ case "${1:-}" in
     build build-asan -DCLEARFIT_SANITIZE=ON -DCLEARFIT_BUILD_BENCHMARKS=OFF
     ASAN_OPTIONS=detect_leaks=1 CLEARFIT_RAY_TEST_SCALE=0.1 run_tests build-asan
     ;;
+  fuzz)
+    install_deps "${FUZZ_PACKAGES[@]}"
+    echo "== building every fuzz target in build-fuzz/ (scripts/fuzz.sh TARGET SECONDS fuzzes one)"
+    FUZZ_BUILD_JOBS=${FUZZ_BUILD_JOBS:-$(nproc)} scripts/fuzz.sh build
+    ;;
   *)
-    sed -n '2,8p' "$0"
+    sed -n '2,9p' "$0"
     exit 2
     ;;
 esac

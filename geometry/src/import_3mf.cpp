@@ -142,6 +142,7 @@ void append_object(RawMesh& raw, PLib3MFBase* object, const Affine& transform, c
 
 RawMesh read_3mf(const std::filesystem::path& path) {
   const std::string name = display(path);
+  check_3mf_package(path, name);  // import_3mf_check.cpp: the zip entries' sizes, before lib3mf trusts them
   Handle model, reader;
   if (lib3mf_createmodel(model.out()) != LIB3MF_OK) throw std::runtime_error("lib3mf: cannot create a model");
   check(lib3mf_model_queryreader(model.p, "3mf", reader.out()), model.p, name, "lib3mf has no 3MF reader");

@@ -73,7 +73,10 @@ RawMesh read_stl(const std::filesystem::path& path);
 RawMesh read_ply(const std::filesystem::path& path);                              // checked, then OpenMesh
 RawMesh read_off(const std::filesystem::path& path);                              // import_ply_off_check.cpp
 RawMesh read_obj(const std::filesystem::path& path);                              // tinyobjloader
-RawMesh read_3mf(const std::filesystem::path& path);                              // lib3mf
+RawMesh read_3mf(const std::filesystem::path& path);                              // checked, then lib3mf
+/// Bounds every zip entry's declared size by its packed bytes and the package's total, and
+/// unpacks each once to check it gives what it declares (import_3mf_check.cpp); throws InputError.
+void check_3mf_package(const std::filesystem::path& path, const std::string& name);
 RawMesh read_gltf(const std::filesystem::path& path, bool binary);               // tinygltf
 
 // Writers take the final (temporary) path; the extension is passed separately.

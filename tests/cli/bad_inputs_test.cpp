@@ -7,6 +7,7 @@
 // file, no empty folder) and finish quickly. docs/bad-inputs.md is this table:
 // the test fails when they differ (CLEARFIT_WRITE_DOCS=1 rewrites the doc).
 #include "cli_support.hpp"
+#include "../support/zip_package.hpp"
 
 #include <clearfit/camera/board.hpp>
 #include <clearfit/camera/camera_model.hpp>
@@ -53,36 +54,8 @@ std::vector<std::string> map_args(std::vector<std::string> extra) {
   return a;
 }
 
-std::vector<Case> catalogue(const std::string& camera_text) {
-  auto cam_with = [&](const std::string& key, const std::string& value) {
-    std::string t = camera_text;
-    const auto at = t.find("'" + key + "'");
-    const auto open = t.find_first_of("['", at + key.size() + 2), close = t.find_first_of("]'", open + 1);
-    t.replace(open, close - open + 1, value);
-    return t;
-  };
-  const std::string sim_scene = kScene + kSim;
-  auto assess = [&](const std::string& captures, const std::string& extra = "") {
-    return std::vector<std::pair<std::string, std::string>>{
-        {"s.yaml", kScene + "captures: {" + captures + ", window_frames: 2}\noutputs: {folder: out, texel_mm: 0.2}\n" + extra}};
-  };
-  const std::string good = "baseline: sim/baseline, worn: sim/worn";
-  const std::vector<std::string> assess_args{"assess", "s.yaml", "--quiet", "--no-html"};
-  const std::vector<std::string> calib{"calibrate", "--grid", "4", "3", "--spacing-mm", "10", "--corners", "c.vnl", "--imagersize", "640", "480",
-                                       "--out", "x.cameramodel"};
-  auto corners = [](const std::string& bad) {
-    std::string v = "# filename x y level\n";
-    for (int i = 0; i < 12; ++i) v += "a.png " + (i == 5 ? bad : std::to_string(100 + 20 * (i % 4)) + " " + std::to_string(100 + 20 * (i / 4))) + " 0\n";
-    return v;
-  };
-  const std::vector<std::string> cal_p{"calibrate-pressure", "--presses", "p.csv", "--person", "p1", "--out", "cal.json"};
-  auto presses = [&](const std::string& row) {
-    std::string csv = kPresses;
-    for (int k = 1; k <= 8; ++k) csv += std::to_string(k) + ",3," + std::to_string(0.01 * k) + ",," + std::to_string(0.01 * k) + "\n";
-    return csv + row;
-  };
-  const std::string board = board_to_yaml(make_board({"tag36h11", 3, 2, 20, 20, 0}));
-  const std::string layout = "schema: clearfit.tag-layout/1\ntags:\n  - {id: 3, corners_mm: [[0, 10, 0], [10, 10, 0], [10, 0, 0], [0, 0, 0]]}\n";
+/// Meshes, read by mesh-info as every command reads them.
+std::vector<Case> mesh_cases() {
   return {
       // ---- meshes (mesh-info reads them as every command does)
       {"mesh", "empty STL", {{"e.stl", ""}}, {"mesh-info", "e.stl"}, {"e.stl", "file is empty"}},
@@ -114,8 +87,25 @@ std::vector<Case> catalogue(const std::string& camera_text) {
       {"mesh", "OFF face count -3", {{"m.off", "OFF\n3 -3 0\n0 0 0\n1 0 0\n0 1 0\n"}}, {"mesh-info", "m.off"}, {"m.off", "'-3'"}},
       {"mesh", "OFF truncated", {{"m.off", "OFF\n3 1 0\n0 0 0\n1 0 0\n"}}, {"mesh-info", "m.off"}, {"m.off", "truncated"}},
       {"mesh", "3MF that is no zip", {{"j.3mf", "not a zip"}}, {"mesh-info", "j.3mf"}, {"j.3mf", "lib3mf could not read it"}},
+      {"mesh", "3MF whose zip entry claims 4 GB", {{"h.3mf", test::tetra_3mf(false, 0xFFFFFFF0u)}}, {"mesh-info", "h.3mf"},
+       {"h.3mf", "zip entry '3D/3dmodel.model'", "declares 4294967280 bytes"}},
+      {"mesh", "3MF whose deflated zip entry unpacks to more than it declares", {{"b.3mf", test::tetra_3mf(true, 100)}}, {"mesh-info", "b.3mf"},
+       {"b.3mf", "zip entry '3D/3dmodel.model'", "more than the 100 bytes"}},
       {"mesh", "glTF that is no JSON", {{"j.gltf", "{ not json"}}, {"mesh-info", "j.gltf"}, {"j.gltf", "tinygltf could not read it"}},
       {"output", "mesh-info --out under a file", {{"f", "x"}}, {"mesh-info", "slab.obj", "--out", "f/info.json"}, {"f/info.json", "is a file"}},
+  };
+}
+
+/// map: its options, the camera model, the pose.
+std::vector<Case> map_cases(const std::string& camera_text) {
+  auto cam_with = [&](const std::string& key, const std::string& value) {
+    std::string t = camera_text;
+    const auto at = t.find("'" + key + "'");
+    const auto open = t.find_first_of("['", at + key.size() + 2), close = t.find_first_of("]'", open + 1);
+    t.replace(open, close - open + 1, value);
+    return t;
+  };
+  return {
       // ---- map: options, camera, pose
       {"index of refraction", "--ior 0", {}, map_args({"--ior", "0"}), {"--ior", "from 1 to 3"}},
       {"index of refraction", "--ior negative", {}, map_args({"--ior", "-1.49"}), {"--ior", "from 1 to 3"}},
@@ -150,6 +140,12 @@ std::vector<Case> catalogue(const std::string& camera_text) {
       {"output", "--out under a file", {{"f", "x"}}, map_args({"--out", "f/m.npy"}), {"f/m.npy", "is a file"}},
       {"output", "--out is a folder", {{"d", "<dir>"}}, map_args({"--out", "d"}), {"d", "directory"}},
       {"output", "--out in a missing folder", {}, map_args({"--out", "no/m.npy"}), {"no/m.npy", "does not exist"}},
+  };
+}
+
+/// Scene files, read by map --scene.
+std::vector<Case> scene_cases() {
+  return {
       // ---- scene files
       {"scene", "missing scene", {}, {"map", "--scene", "nope.yaml"}, {"nope.yaml", "not found"}},
       {"scene", "a folder for the scene", {{"d.yaml", "<dir>"}}, {"map", "--scene", "d.yaml"}, {"d.yaml", "directory"}},
@@ -175,6 +171,19 @@ std::vector<Case> catalogue(const std::string& camera_text) {
        {"f/m.npy", "is a file"}},
       {"output", "scene output folder left by a failing run", {{"s.yaml", "mesh: slab.obj\ncamera: cam.cameramodel\ncontact: {group: nope}\noutputs: {map: new/deep/m.npy}\n"}},
        {"map", "--scene", "s.yaml"}, {"slab.obj", "group 'nope'"}},
+  };
+}
+
+/// simulate; assess's captures and calibration.
+std::vector<Case> simulate_and_assess_cases() {
+  const std::string sim_scene = kScene + kSim;
+  auto assess = [&](const std::string& captures, const std::string& extra = "") {
+    return std::vector<std::pair<std::string, std::string>>{
+        {"s.yaml", kScene + "captures: {" + captures + ", window_frames: 2}\noutputs: {folder: out, texel_mm: 0.2}\n" + extra}};
+  };
+  const std::string good = "baseline: sim/baseline, worn: sim/worn";
+  const std::vector<std::string> assess_args{"assess", "s.yaml", "--quiet", "--no-html"};
+  return {
       // ---- simulate
       {"scene", "simulate without a simulation section", {{"s.yaml", kScene}}, {"simulate", "s.yaml", "--out", "sim2"}, {"s.yaml", "simulation"}},
       {"output", "simulate --out under a file", {{"f", "x"}, {"s.yaml", sim_scene}}, {"simulate", "s.yaml", "--out", "f/sim"}, {"f", "is a file"}},
@@ -223,6 +232,27 @@ std::vector<Case> catalogue(const std::string& camera_text) {
          f.push_back({"f", "x"});
          return f;
        }(), assess_args, {"f/out", "is a file"}},
+  };
+}
+
+/// calibrate, videos as board and tag views, calibrate-pressure, study and compare.
+std::vector<Case> calibration_cases() {
+  const std::vector<std::string> calib{"calibrate", "--grid", "4", "3", "--spacing-mm", "10", "--corners", "c.vnl", "--imagersize", "640", "480",
+                                       "--out", "x.cameramodel"};
+  auto corners = [](const std::string& bad) {
+    std::string v = "# filename x y level\n";
+    for (int i = 0; i < 12; ++i) v += "a.png " + (i == 5 ? bad : std::to_string(100 + 20 * (i % 4)) + " " + std::to_string(100 + 20 * (i / 4))) + " 0\n";
+    return v;
+  };
+  const std::vector<std::string> cal_p{"calibrate-pressure", "--presses", "p.csv", "--person", "p1", "--out", "cal.json"};
+  auto presses = [&](const std::string& row) {
+    std::string csv = kPresses;
+    for (int k = 1; k <= 8; ++k) csv += std::to_string(k) + ",3," + std::to_string(0.01 * k) + ",," + std::to_string(0.01 * k) + "\n";
+    return csv + row;
+  };
+  const std::string board = board_to_yaml(make_board({"tag36h11", 3, 2, 20, 20, 0}));
+  const std::string layout = "schema: clearfit.tag-layout/1\ntags:\n  - {id: 3, corners_mm: [[0, 10, 0], [10, 10, 0], [10, 0, 0], [0, 0, 0]]}\n";
+  return {
       // ---- calibrate
       {"corners", "empty corners file", {{"c.vnl", ""}}, calib, {"c.vnl", "no corner rows"}},
       {"corners", "corner at x = 4e7 px", {{"c.vnl", corners("40000000 100")}}, calib, {"a.png", "corner 5", "far outside"}},
@@ -262,6 +292,13 @@ std::vector<Case> catalogue(const std::string& camera_text) {
       {"manifest", "manifest that is no YAML", {{"m.yaml", "study: [x,\n"}}, {"study", "run", "m.yaml", "--out", "st"}, {"m.yaml"}},
       {"assessment", "compare a folder without report.json", {{"a", "<dir>"}, {"b", "<dir>"}}, {"compare", "a", "b", "--out", "cmp"}, {"report.json"}},
   };
+}
+
+std::vector<Case> catalogue(const std::string& camera_text) {
+  std::vector<Case> all;
+  for (auto part : {mesh_cases(), map_cases(camera_text), scene_cases(), simulate_and_assess_cases(), calibration_cases()})
+    all.insert(all.end(), std::make_move_iterator(part.begin()), std::make_move_iterator(part.end()));
+  return all;
 }
 
 class BadInputs : public CliTest {

@@ -6,6 +6,7 @@
 #include <clearfit/geometry/shapes.hpp>
 
 #include "../../geometry/src/import_internal.hpp"
+#include "../support/zip_package.hpp"
 
 #include <gmock/gmock.h>
 #include <gtest/gtest.h>
@@ -634,6 +635,34 @@ TEST_F(Import, ThreeMfWithoutMeshAndBroken3mf) {
                           "z.write('types','[Content_Types].xml'); z.close()\"";
   ASSERT_EQ(std::system(cmd.c_str()), 0);
   expect_input_error([&] { load_mesh(file("empty.3mf")); }, file("empty.3mf"), "no mesh object");
+}
+
+// A 3MF's zip entries are checked before lib3mf reads them: the package written byte by byte
+// (tests/support/zip_package.hpp) with honest sizes reads, stored and deflated alike; the same package
+// whose model entry's headers lie about its unpacked size is refused naming the file and the entry.
+TEST_F(Import, ThreeMfZipEntrySizesAreBoundedBeforeLib3mf) {
+  for (bool deflate : {false, true}) {
+    const Mesh m = load_mesh(bytes(deflate ? "deflated.3mf" : "stored.3mf", test::tetra_3mf(deflate)));
+    EXPECT_EQ(m.num_vertices(), 4);
+    EXPECT_EQ(m.num_faces(), 4);
+  }
+  const std::string entry = "zip entry '3D/3dmodel.model'";
+  const std::uint32_t model_size = static_cast<std::uint32_t>(test::tetra_3mf_entries().back().data.size());
+  struct Lie {
+    const char* file;
+    bool deflate;
+    std::uint32_t declared;
+    std::string defect;
+  };
+  for (const Lie& lie : {Lie{"huge_stored.3mf", false, 0xFFFFFFF0u, "declares 4294967280 bytes unpacked from " + std::to_string(model_size)},
+                         Lie{"huge_deflated.3mf", true, 0xFFFFFFF0u, "more than deflate can unpack"},
+                         Lie{"small_deflated.3mf", true, 100u, "unpacks to more than the 100 bytes"},
+                         Lie{"large_deflated.3mf", true, model_size + 1000, "unpacks to " + std::to_string(model_size) + " bytes"}}) {
+    SCOPED_TRACE(lie.file);
+    const fs::path p = bytes(lie.file, test::tetra_3mf(lie.deflate, lie.declared));
+    expect_input_error([&] { load_mesh(p); }, p, entry);
+    expect_input_error([&] { load_mesh(p); }, p, lie.defect);
+  }
 }
 
 TEST_F(Import, GltfWithoutTriangles) {
