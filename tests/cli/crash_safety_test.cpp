@@ -83,12 +83,7 @@ class CrashSafety : public CliTest {
   void SetUp() override {
     CliTest::SetUp();
     write_slab_part(work());
-    write_text(work() / "scene.yaml",
-               "mesh: slab.obj\nior: 1.49\ncontact: {group: contact}\ncamera: cam.cameramodel\n"
-               "captures: {baseline: sim/baseline, worn: sim/worn, window_frames: 3, motion_compensation: false}\noutputs: {folder: out, texel_mm: 0.2}\n"
-               "simulation:\n  format: png\n  timeline: {fps: 10, baseline_s: 0.5, press_s: 0.4}\n"
-               "  pressure:\n    texel_mm: 0.2\n    sources:\n      - {name: a, type: gaussian, center_uv_mm: [12, 9], peak_kpa: 15, sigma_mm: 2}\n"
-               "  motion: {step_px: 0}\n  presses: {diameters_mm: [2], levels: 6, repetitions: 2}\n");
+    write_text(work() / "scene.yaml", slab_scene(", motion_compensation: false", "", "  motion: {step_px: 0}\n"));
   }
   Ended kill_at(const std::vector<std::string>& args, const std::string& stage, double after_s = -1) {
     return run_and_kill(args, work(), root() / "capture", stage, after_s);

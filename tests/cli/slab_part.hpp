@@ -6,6 +6,7 @@
 #include <clearfit/geometry/shapes.hpp>
 
 #include <filesystem>
+#include <string>
 
 namespace clearfit::cli_test {
 
@@ -18,6 +19,17 @@ inline void write_slab_part(const std::filesystem::path& dir) {
   cam.cam_from_part.rotation = Eigen::Vector3d(1, -1, -1).asDiagonal();
   cam.cam_from_part.translation = Vec3(0, 0, 60);
   write_cameramodel(cam, dir / "cam.cameramodel");
+}
+
+/// A scene of that part (scene.yaml) with captures in sim/, outputs in out/ and a small simulation of one
+/// pressed place; `captures`, `outputs` and `simulation` add keys to those sections.
+inline std::string slab_scene(const std::string& captures = "", const std::string& outputs = "", const std::string& simulation = "") {
+  return "mesh: slab.obj\nior: 1.49\ncontact: {group: contact}\ncamera: cam.cameramodel\n"
+         "captures: {baseline: sim/baseline, worn: sim/worn, window_frames: 3" + captures + "}\n"
+         "outputs: {folder: out, texel_mm: 0.2" + outputs + "}\n"
+         "simulation:\n  format: png\n  timeline: {fps: 10, baseline_s: 0.5, press_s: 0.4}\n"
+         "  pressure:\n    texel_mm: 0.2\n    sources:\n      - {name: a, type: gaussian, center_uv_mm: [12, 9], peak_kpa: 15, sigma_mm: 2}\n"
+         "  presses: {diameters_mm: [2], levels: 6, repetitions: 2}\n" + simulation;
 }
 
 }  // namespace clearfit::cli_test
