@@ -94,7 +94,7 @@ case "${1:-}" in
     FUZZ_BUILD_JOBS=${FUZZ_BUILD_JOBS:-$(nproc)} scripts/fuzz.sh build
     ;;
   *)
-    sed -n '2,9p' "$0"
+    sed -n '2,8p' "$0"
     exit 2
     ;;
 esac
