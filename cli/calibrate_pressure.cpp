@@ -7,6 +7,7 @@
 #include <clearfit/error.hpp>
 #include <clearfit/fit/pressure_field_fit.hpp>
 #include <clearfit/fit/pressure_model.hpp>
+#include <clearfit/format.hpp>
 
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
@@ -22,13 +23,6 @@ namespace clearfit::cli {
 namespace {
 constexpr double kStudyMeanR2 = 0.439;  // PAPER.md: the study's per-participant linear fits
 
-// A number for the table: fixed precision, "-" for NaN (never print NaN).
-std::string cell(double v, int precision = 4) {
-  if (!std::isfinite(v)) return "-";
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.*g", precision, v);
-  return buf;
-}
 nlohmann::json jnum(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
 
 // Tick step of about range/target in {1, 2, 5}·10^k.
@@ -62,13 +56,13 @@ cv::Mat plot_fit(const PressureFitResult& r, const std::vector<CalibrationPress>
   for (double t = x0; t <= x1 + 1e-9 * xs; t += xs) {
     cv::line(img, px(t, y0), px(t, y1), grey, 1);
     cv::line(img, px(t, y0), px(t, y0) + cv::Point(0, 6), black, 1);
-    const std::string s = cell(t, 3);
+    const std::string s = significant_digits(t, 3, "-");
     cv::putText(img, s, px(t, y0) + cv::Point(-4 * static_cast<int>(s.size()), 24), font, 0.45, black, 1, cv::LINE_AA);
   }
   for (double t = y0; t <= y1 + 1e-9 * ys; t += ys) {
     cv::line(img, px(x0, t), px(x1, t), grey, 1);
     cv::line(img, px(x0, t), px(x0, t) - cv::Point(6, 0), black, 1);
-    const std::string s = cell(std::abs(t) < 1e-12 ? 0.0 : t, 3);
+    const std::string s = significant_digits(std::abs(t) < 1e-12 ? 0.0 : t, 3, "-");
     cv::putText(img, s, px(x0, t) + cv::Point(-12 - 9 * static_cast<int>(s.size()), 5), font, 0.45, black, 1, cv::LINE_AA);
   }
   cv::rectangle(img, px(x0, y1), px(x1, y0), black, 1);
@@ -99,10 +93,11 @@ cv::Mat plot_fit(const PressureFitResult& r, const std::vector<CalibrationPress>
   cv::circle(img, lg, 4, blue, cv::FILLED, cv::LINE_AA);
   cv::putText(img, "presses (x: outliers)", lg + cv::Point(15, 5), font, 0.45, black, 1, cv::LINE_AA);
   cv::line(img, lg + cv::Point(-8, 22), lg + cv::Point(8, 22), green, 2);
-  cv::putText(img, "logistic, R2 = " + cell(r.r2_logistic, 3), lg + cv::Point(15, 27), font, 0.45, black, 1, cv::LINE_AA);
+  cv::putText(img, "logistic, R2 = " + significant_digits(r.r2_logistic, 3, "-"), lg + cv::Point(15, 27),
+              font, 0.45, black, 1, cv::LINE_AA);
   cv::line(img, lg + cv::Point(-8, 44), lg + cv::Point(8, 44), orange, 2);
-  cv::putText(img, "linear, R2 = " + cell(r.linear.r2, 3) + " (study mean 0.439)", lg + cv::Point(15, 49), font, 0.45, black, 1,
-              cv::LINE_AA);
+  cv::putText(img, "linear, R2 = " + significant_digits(r.linear.r2, 3, "-") + " (study mean 0.439)",
+              lg + cv::Point(15, 49), font, 0.45, black, 1, cv::LINE_AA);
   cv::putText(img, "dotted: detection limit, saturation", lg + cv::Point(15, 71), font, 0.45, black, 1, cv::LINE_AA);
   // Presses.
   for (std::size_t i = 0; i < presses.size(); ++i) {
@@ -156,11 +151,13 @@ nlohmann::json report_json(const PressureFitResult& r, const std::string& presse
 
 void print_summary(const PressureFitResult& r, RobustLoss loss) {
   const PressureCalibration& cal = r.calibration;
-  std::printf("person %s: %d presses at %d pressure levels, %s..%s kPa; robust loss %s\n", cal.person.c_str(), cal.presses,
-              r.levels, cell(cal.p_min_kpa, 3).c_str(), cell(cal.p_max_kpa, 3).c_str(), to_string(loss));
+  std::printf("person %s: %d presses at %d pressure levels, %s..%s kPa; robust loss %s\n", cal.person.c_str(),
+              cal.presses, r.levels, significant_digits(cal.p_min_kpa, 3, "-").c_str(),
+              significant_digits(cal.p_max_kpa, 3, "-").c_str(), to_string(loss));
   std::printf("\n  %-9s %-14s %12s %12s\n", "model", "parameter", "value", "+- SE");
   auto row = [](const char* model, const char* name, double v, double se) {
-    std::printf("  %-9s %-14s %12s %12s\n", model, name, cell(v, 5).c_str(), cell(se, 3).c_str());
+    std::printf("  %-9s %-14s %12s %12s\n", model, name, significant_digits(v, 5, "-").c_str(),
+                significant_digits(se, 3, "-").c_str());
   };
   row("logistic", "y_max", r.logistic.y_max, r.logistic_se[0]);
   row("", "p50_kpa", r.logistic.p50_kpa, r.logistic_se[1]);
@@ -168,22 +165,33 @@ void print_summary(const PressureFitResult& r, RobustLoss loss) {
   row("linear", "intercept", r.linear.intercept, r.linear.se_intercept);
   row("", "slope_per_kpa", r.linear.slope_per_kpa, r.linear.se_slope);
   const PressureEstimate det = cal.invert(cal.detection_signal(), 0.0), sat = cal.invert(1e300);
-  std::printf("\n  R^2 of the signal: logistic %s, linear %s (the study's linear fits: mean %.3f)\n", cell(r.r2_logistic, 3).c_str(),
-              cell(r.linear.r2, 3).c_str(), kStudyMeanR2);
-  std::printf("  stored model: %s; RMSE %s kPa over %d presses inside the invertible range (%s kPa without outliers)\n",
-              to_string(cal.model), cell(r.rmse_kpa, 3).c_str(), r.presses_in_range, cell(r.rmse_kpa_inliers, 3).c_str());
-  std::printf("  signal noise %s: detection limit %s (%s kPa), saturation %s (%s kPa)\n", cell(cal.noise_sigma, 3).c_str(),
-              cell(cal.detection_signal(), 3).c_str(),
-              cell(det.status == PressureStatus::ok ? det.pressure_kpa : det.bound_kpa, 3).c_str(),
-              cell(cal.saturation_signal(), 3).c_str(), cell(sat.bound_kpa, 3).c_str());
+  std::printf("\n  R^2 of the signal: logistic %s, linear %s (the study's linear fits: mean %.3f)\n",
+              significant_digits(r.r2_logistic, 3, "-").c_str(),
+              significant_digits(r.linear.r2, 3, "-").c_str(), kStudyMeanR2);
+  std::printf(
+      "  stored model: %s; RMSE %s kPa over %d presses inside the invertible range (%s kPa without "
+      "outliers)\n",
+      to_string(cal.model), significant_digits(r.rmse_kpa, 3, "-").c_str(), r.presses_in_range,
+      significant_digits(r.rmse_kpa_inliers, 3, "-").c_str());
+  std::printf(
+      "  signal noise %s: detection limit %s (%s kPa), saturation %s (%s kPa)\n",
+      significant_digits(cal.noise_sigma, 3, "-").c_str(),
+      significant_digits(cal.detection_signal(), 3, "-").c_str(),
+      significant_digits(det.status == PressureStatus::ok ? det.pressure_kpa : det.bound_kpa, 3, "-").c_str(),
+      significant_digits(cal.saturation_signal(), 3, "-").c_str(),
+      significant_digits(sat.bound_kpa, 3, "-").c_str());
   std::printf("\n  %-8s %8s %9s %10s %10s %9s %8s %6s  %s\n", "trial", "p_kpa", "signal", "res", "res_lin", "pred_kpa",
               "res_kpa", "weight", "status");
   for (std::size_t i = 0; i < r.residuals.size(); ++i) {
     const PressResidual& pr = r.residuals[i];
-    std::printf("  %-8s %8s %9s %10s %10s %9s %8s %6s  %s\n", pr.trial.c_str(), cell(pr.pressure_kpa, 4).c_str(),
-                cell(pr.signal, 4).c_str(), cell(pr.residual_signal, 3).c_str(), cell(pr.residual_linear, 3).c_str(),
-                cell(pr.predicted_kpa, 4).c_str(), cell(pr.residual_kpa, 3).c_str(), cell(pr.weight, 2).c_str(),
-                to_string(pr.status));
+    std::printf("  %-8s %8s %9s %10s %10s %9s %8s %6s  %s\n", pr.trial.c_str(),
+                significant_digits(pr.pressure_kpa, 4, "-").c_str(),
+                significant_digits(pr.signal, 4, "-").c_str(),
+                significant_digits(pr.residual_signal, 3, "-").c_str(),
+                significant_digits(pr.residual_linear, 3, "-").c_str(),
+                significant_digits(pr.predicted_kpa, 4, "-").c_str(),
+                significant_digits(pr.residual_kpa, 3, "-").c_str(),
+                significant_digits(pr.weight, 2, "-").c_str(), to_string(pr.status));
   }
   std::printf("\n");
 }

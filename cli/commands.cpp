@@ -2,6 +2,7 @@
 #include <clearfit/cli/commands.hpp>
 
 #include <clearfit/error.hpp>
+#include <clearfit/format.hpp>
 
 #include <algorithm>
 #include <cstdio>
@@ -37,11 +38,7 @@ std::vector<RegisteredCommand> registered_commands() {
   return commands;
 }
 
-std::string fixed(double v, int digits) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.*f", digits, v);
-  return buf;
-}
+std::string fixed(double v, int digits) { return fixed_digits(v, digits); }
 
 int run_program(int argc, char** argv, const std::string& program, const std::string& description) {
   CLI::App app{program + " " CLEARFIT_VERSION " - " + description};

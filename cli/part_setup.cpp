@@ -78,8 +78,7 @@ RefractionMap compute_part_map(const LoadedPart& part, const CacheOptions& cache
   try {
     map = compute_refraction_map_cached(part.trace_scene(), part.camera, part.cam_from_part, part.map_options,
                                         cache_dir, &hit);
-  } catch (const InputError& e) {
-    if (e.element().rfind("pose", 0) != 0) throw;
+  } catch (const PoseError& e) {
     throw InputError(part.pose_source, "cam_from_part", e.what());
   }
   if (map.stats.by_status[0] == 0)

@@ -3,6 +3,7 @@
 #include <clearfit/cli/commands.hpp>
 
 #include <clearfit/error.hpp>
+#include <clearfit/format.hpp>
 #include <clearfit/study/jobs.hpp>
 #include <clearfit/study/slurm.hpp>
 #include <clearfit/study/tables.hpp>
@@ -32,9 +33,7 @@ study::RunContext context_for(const StudyOpts& o) {
 
 std::string minutes(double s) {
   if (s < 0) return "?";
-  char buf[32];
-  std::snprintf(buf, sizeof buf, s < 90 ? "%.0f s" : "%.1f min", s < 90 ? s : s / 60);
-  return buf;
+  return s < 90 ? fixed_digits(s, 0) + " s" : fixed_digits(s / 60, 1) + " min";
 }
 
 /// Prints the tables' summary; exit 0 when every job is ok, else 2.

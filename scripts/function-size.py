@@ -11,7 +11,7 @@ import pathlib
 import re
 import sys
 
-MODULES = ["geometry", "camera", "refraction", "fit", "reports", "study", "cli", "bench"]
+MODULES = ["core", "geometry", "camera", "refraction", "fit", "reports", "study", "cli", "bench"]
 
 
 def strip_code(text):

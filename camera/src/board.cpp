@@ -2,6 +2,7 @@
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/camera/board.hpp>
 #include <clearfit/error.hpp>
+#include <clearfit/format.hpp>
 #include <clearfit/yaml_key.hpp>
 
 #include "apriltag_family_internal.hpp"
@@ -69,13 +70,6 @@ bool family_has_classic_border(const apriltag_family_t& family) {
 
 namespace {
 
-std::string fmt(double v) {
-  std::ostringstream s;
-  s.precision(10);
-  s << v;
-  return s.str();
-}
-
 /// Smallest q in 1..16 with ratio * q an integer (to 1e-6 relative); 0 if none.
 int denominator_of(double ratio) {
   for (int q = 1; q <= 16; ++q) {
@@ -95,10 +89,12 @@ Board make_board(const BoardLayout& layout) {
   if (layout.rows * static_cast<long>(layout.cols) > 100000)
     throw InputError("", "rows x cols", "more than 100000 tags", "a calibration board has tens of tags");
   if (!(std::isfinite(layout.tag_mm) && layout.tag_mm > 0))
-    throw InputError("", "tag_mm",
-                     "must be a positive edge of the black square in mm, got " + fmt(layout.tag_mm));
+    throw InputError(
+        "", "tag_mm",
+        "must be a positive edge of the black square in mm, got " + significant_digits(layout.tag_mm, 10));
   if (!(std::isfinite(layout.gap_mm) && layout.gap_mm >= 0))
-    throw InputError("", "gap_mm", "must be a finite gap in mm >= 0, got " + fmt(layout.gap_mm));
+    throw InputError("", "gap_mm",
+                     "must be a finite gap in mm >= 0, got " + significant_digits(layout.gap_mm, 10));
   if (layout.first_id < 0)
     throw InputError("", "first_id", "must be >= 0, got " + std::to_string(layout.first_id));
 
@@ -127,15 +123,18 @@ Board make_board(const BoardLayout& layout) {
   const double cell = layout.tag_mm / b.cells_at_border;
   if (layout.gap_mm < cell * (1 - 1e-9))
     throw InputError("", "gap_mm",
-                     "gap " + fmt(layout.gap_mm) + " mm is narrower than one bit cell (" + fmt(cell) +
+                     "gap " + significant_digits(layout.gap_mm, 10) + " mm is narrower than one bit cell (" +
+                         significant_digits(cell, 10) +
                          " mm): the tags' white borders would overlap and AprilTag cannot find them",
-                     "use gap_mm = tag_mm (" + fmt(layout.tag_mm) + "), which also gives the simplest grid");
+                     "use gap_mm = tag_mm (" + significant_digits(layout.tag_mm, 10) +
+                         "), which also gives the simplest grid");
   // Both lengths must be integer multiples of one spacing: gap/tag = p/q.
   const int q = denominator_of(layout.gap_mm / layout.tag_mm);
   if (q == 0)
     throw InputError(
         "", "gap_mm",
-        "tag " + fmt(layout.tag_mm) + " mm and gap " + fmt(layout.gap_mm) +
+        "tag " + significant_digits(layout.tag_mm, 10) + " mm and gap " +
+            significant_digits(layout.gap_mm, 10) +
             " mm are not multiples of one spacing, so the tag corners do not lie on one uniform grid "
             "(mrcal's board model)",
         "use gap_mm = tag_mm, or a gap that is a simple fraction of the tag (e.g. tag/2, tag/4)");
@@ -146,7 +145,8 @@ Board make_board(const BoardLayout& layout) {
   b.grid_height = (layout.rows - 1) * b.nodes_per_pitch + b.nodes_per_tag + 1;
   if (static_cast<long>(b.grid_width) * b.grid_height > 1000000)
     throw InputError("", "gap_mm",
-                     "the board grid would have more than 10^6 points (spacing " + fmt(b.spacing_mm) + " mm)",
+                     "the board grid would have more than 10^6 points (spacing " +
+                         significant_digits(b.spacing_mm, 10) + " mm)",
                      "use gap_mm = tag_mm");
   return b;
 }
@@ -298,7 +298,8 @@ Board read_board(const std::filesystem::path& path) {
       const double v = get.template operator()<double>(key, 0, false);
       if (std::abs(v - derived) > 1e-9 * std::max(1.0, std::abs(derived)))
         throw InputError(file, where(n, key),
-                         "says " + fmt(v) + " but the layout gives " + fmt(derived) +
+                         "says " + significant_digits(v, 10) + " but the layout gives " +
+                             significant_digits(derived, 10) +
                              ": the file disagrees with its own layout (edited by hand?)",
                          "remove the key or fix the layout");
     }
@@ -378,17 +379,18 @@ std::string board_svg(const Board& b) {
   s << "<text x=\"" << bx + bar + 3 << "\" y=\"" << by + 0.9 << "\">" << bar << " mm</text>\n"
     << "<text x=\"" << bx << "\" y=\"" << by + 6 << "\">" << describe(b) << "</text>\n"
     << "<text x=\"" << bx << "\" y=\"" << by + 10 << "\">Print at 100 % (no fit to page). Check: the bar is "
-    << bar << " mm, each black square " << fmt(b.layout.tag_mm) << " mm, square to square "
-    << fmt(b.layout.tag_mm + b.layout.gap_mm) << " mm.</text>\n</g>\n</svg>\n";
+    << bar << " mm, each black square " << significant_digits(b.layout.tag_mm, 10) << " mm, square to square "
+    << significant_digits(b.layout.tag_mm + b.layout.gap_mm, 10) << " mm.</text>\n</g>\n</svg>\n";
   return s.str();
 }
 
 std::string describe(const Board& b) {
   std::ostringstream s;
   s << b.layout.family << ", " << b.layout.rows << " x " << b.layout.cols << " tags of "
-    << fmt(b.layout.tag_mm) << " mm, gap " << fmt(b.layout.gap_mm) << " mm, ids " << b.layout.first_id << ".."
-    << b.layout.first_id + b.num_tags() - 1 << "; grid " << b.grid_width << " x " << b.grid_height
-    << " points, spacing " << fmt(b.spacing_mm) << " mm";
+    << significant_digits(b.layout.tag_mm, 10) << " mm, gap " << significant_digits(b.layout.gap_mm, 10)
+    << " mm, ids " << b.layout.first_id << ".." << b.layout.first_id + b.num_tags() - 1 << "; grid "
+    << b.grid_width << " x " << b.grid_height << " points, spacing " << significant_digits(b.spacing_mm, 10)
+    << " mm";
   return s.str();
 }
 

@@ -6,6 +6,7 @@
 
 #include <clearfit/camera/calibrate.hpp>
 #include <clearfit/error.hpp>
+#include <clearfit/format.hpp>
 
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
@@ -27,13 +28,6 @@ namespace {
 using Clock = std::chrono::steady_clock;
 double seconds_since(Clock::time_point t0) {
   return std::chrono::duration<double>(Clock::now() - t0).count();
-}
-
-std::string fmt(double v, int precision = 3) {
-  std::ostringstream s;
-  s.precision(precision);
-  s << v;
-  return s.str();
 }
 
 bool present(const Eigen::Vector3d& c) { return c.z() >= 0 && std::isfinite(c.x()) && std::isfinite(c.y()); }
@@ -176,7 +170,8 @@ void CalibrationGrid::validate() const {
         "", "board grid",
         "needs at least 2 x 2 corners, got " + std::to_string(width) + " x " + std::to_string(height));
   if (!(std::isfinite(spacing_mm) && spacing_mm > 0))
-    throw InputError("", "board spacing", "must be a positive number of millimetres, got " + fmt(spacing_mm));
+    throw InputError("", "board spacing",
+                     "must be a positive number of millimetres, got " + significant_digits(spacing_mm, 3));
 }
 
 void CalibrationOptions::validate() const {
@@ -187,18 +182,18 @@ void CalibrationOptions::validate() const {
   if (lensmodel.find("CAHVORE") != std::string::npos)
     fail("lensmodel", lensmodel, "CAHVORE is not supported");
   if (!(std::isfinite(focal_px) && focal_px >= 0))
-    fail("focal_px", fmt(focal_px), "must be >= 0 (0: estimate)");
+    fail("focal_px", significant_digits(focal_px, 3), "must be >= 0 (0: estimate)");
   if (!(fallback_fov_deg > 1 && fallback_fov_deg < 179))
-    fail("fallback_fov_deg", fmt(fallback_fov_deg), "must be in (1, 179)");
+    fail("fallback_fov_deg", significant_digits(fallback_fov_deg, 3), "must be in (1, 179)");
   if (!(uncertainty_distance_mm >= 0))
-    fail("uncertainty_distance_mm", fmt(uncertainty_distance_mm), "must be >= 0");
+    fail("uncertainty_distance_mm", significant_digits(uncertainty_distance_mm, 3), "must be >= 0");
   if (coverage_cells_x < 1 || coverage_cells_y < 1)
     fail("coverage_cells", std::to_string(coverage_cells_x), "must be >= 1");
   if (uncertainty_cells_x < 1 || uncertainty_cells_y < 1)
     fail("uncertainty_cells", std::to_string(uncertainty_cells_x), "must be >= 1");
   if (min_views < 1) fail("min_views", std::to_string(min_views), "must be >= 1");
   if (!(max_grid_inconsistency > 0 && max_grid_inconsistency <= 1))
-    fail("max_grid_inconsistency", fmt(max_grid_inconsistency), "must be in (0, 1]");
+    fail("max_grid_inconsistency", significant_digits(max_grid_inconsistency, 3), "must be in (0, 1]");
 }
 
 void check_calibration_lensmodel(const std::string& lensmodel) {
@@ -276,7 +271,7 @@ UsableViews usable_views(const std::vector<BoardObservation>& views, const Calib
       throw InputError(
           v.image, "corners",
           "are inconsistent with a " + std::to_string(grid.width) + " x " + std::to_string(grid.height) +
-              " grid: " + fmt(100 * bad, 2) +
+              " grid: " + significant_digits(100 * bad, 2) +
               "% of neighbouring corner triples are not in a row (the board description disagrees "
               "with the printed board)",
           "check the board's rows, columns and corner order against the printed board");
@@ -317,7 +312,7 @@ double seed_focal(const std::vector<const BoardObservation*>& used, const Calibr
     res.notes.push_back(
         "the board homographies did not determine the focal length (boards facing the camera?); "
         "started from a " +
-        fmt(options.fallback_fov_deg) + " degree field of view");
+        significant_digits(options.fallback_fov_deg, 3) + " degree field of view");
   }
 
   res.focal_seed_px = f;
@@ -496,7 +491,8 @@ double calibration_warnings(CalibrationResult& res) {
   const double median_distance = sorted[sorted.size() / 2];
   if ((sorted.back() - sorted.front()) < 0.15 * median_distance)
     res.warnings.push_back(
-        "all boards are at about one distance (" + fmt(sorted.front(), 4) + " to " + fmt(sorted.back(), 4) +
+        "all boards are at about one distance (" + significant_digits(sorted.front(), 4) + " to " +
+        significant_digits(sorted.back(), 4) +
         " mm): the focal length and the distance are nearly interchangeable; add views nearer "
         "and farther away");
   if (*std::max_element(tilts.begin(), tilts.end()) < 15)
@@ -517,7 +513,7 @@ double calibration_warnings(CalibrationResult& res) {
                            "): the lens model is extrapolated there; add views that reach them");
   }
   if (res.rms_px > 1.0)
-    res.warnings.push_back("RMS reprojection error " + fmt(res.rms_px) +
+    res.warnings.push_back("RMS reprojection error " + significant_digits(res.rms_px, 3) +
                            " px is large: check focus, motion blur, the board's flatness and the lens model");
   if (res.outliers > 0.05 * (res.outliers + res.corners_used))
     res.warnings.push_back(std::to_string(res.outliers) + " corners were rejected as outliers (over 5%)");

@@ -3,6 +3,7 @@
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/camera/detect.hpp>
 #include <clearfit/error.hpp>
+#include <clearfit/format.hpp>
 
 #include "apriltag_family_internal.hpp"
 
@@ -27,13 +28,6 @@ namespace clearfit {
 namespace {
 
 using V2 = Eigen::Vector2d;
-
-std::string fmt(double v, int precision = 3) {
-  std::ostringstream s;
-  s.precision(precision);
-  s << v;
-  return s.str();
-}
 
 cv::Mat to_gray(const cv::Mat& image) {
   if (image.empty()) throw std::invalid_argument("detect: empty image");
@@ -183,7 +177,7 @@ TagFit fit_tag(const cv::Mat& f, const std::array<V2, 4>& start, int cells_at_bo
       cell_px /= cells_at_border;
       fit.cell_px = cell_px;
       const double h = std::min(opt.max_window_px, 0.45 * cell_px);
-      if (h < 0.8) return fit.why = "tag too small (bit cell " + fmt(cell_px) + " px)", fit;
+      if (h < 0.8) return fit.why = "tag too small (bit cell " + significant_digits(cell_px, 3) + " px)", fit;
       const int n = std::clamp(static_cast<int>(len_px * (1 - 2 * opt.edge_margin)), 6, 200);
       const V2 nu = V2(-(b - a).y(), (b - a).x()).normalized();
       const double delta = 1e-3 * (b - a).norm();
@@ -263,7 +257,8 @@ TagFit fit_tag(const cv::Mat& f, const std::array<V2, 4>& start, int cells_at_bo
       if (!cp[k].allFinite()) return fit.why = "a refined corner cannot be projected", fit;
       const double moved = (cp[k] - start[k]).norm();
       const double allowed = std::max(2.0, 0.5 * (start[(k + 1) % 4] - start[k]).norm() / cells_at_border);
-      if (moved > allowed) return fit.why = "refinement moved a corner " + fmt(moved) + " px", fit;
+      if (moved > allowed)
+        return fit.why = "refinement moved a corner " + significant_digits(moved, 3) + " px", fit;
       fit.corners[k] = cp[k];
     }
   }
@@ -294,7 +289,7 @@ void quality_notes(const std::vector<TagFit>& fits, std::vector<std::string>& no
   if (blurred)
     notes.push_back(
         "blurred: " + std::to_string(blurred) + " of " + std::to_string(fits.size()) +
-        " tags have edges wider than 0.2 bit cells (up to " + fmt(worst, 2) +
+        " tags have edges wider than 0.2 bit cells (up to " + significant_digits(worst, 2) +
         "); their corners may be biased and got lower weights (focus, shorter exposure, or closer)");
   if (saturated)
     notes.push_back(
@@ -357,7 +352,8 @@ std::string rejection(const Detector::Tag& t, int count, int width, int height, 
   if (count > 1) return "seen " + std::to_string(count) + " times: all copies rejected";
   if (t.hamming > opt.max_hamming) return "rejected: " + std::to_string(t.hamming) + " bit errors";
   if (t.margin < opt.min_decision_margin)
-    return "rejected as ambiguous: decision margin " + fmt(t.margin) + " < " + fmt(opt.min_decision_margin);
+    return "rejected as ambiguous: decision margin " + significant_digits(t.margin, 3) + " < " +
+           significant_digits(opt.min_decision_margin, 3);
   for (const V2& p : t.p)
     if (!(p.x() >= opt.border_margin_px - 0.5 && p.y() >= opt.border_margin_px - 0.5 &&
           p.x() <= width - 0.5 - opt.border_margin_px && p.y() <= height - 0.5 - opt.border_margin_px))
@@ -468,7 +464,8 @@ int BoardObservation::num_valid() const {
 
 void DetectOptions::validate() const {
   auto fail = [](const char* field, double v, const char* rule) {
-    throw std::invalid_argument(std::string("DetectOptions::") + field + " = " + fmt(v) + ": " + rule);
+    throw std::invalid_argument(std::string("DetectOptions::") + field + " = " + significant_digits(v, 3) +
+                                ": " + rule);
   };
   if (!(quad_decimate >= 1 && quad_decimate <= 8)) fail("quad_decimate", quad_decimate, "must be in 1..8");
   if (!(quad_sigma >= 0 && quad_sigma <= 10)) fail("quad_sigma", quad_sigma, "must be in 0..10");
@@ -481,7 +478,8 @@ void DetectOptions::validate() const {
 
 void RefineOptions::validate() const {
   auto fail = [](const char* field, double v, const char* rule) {
-    throw std::invalid_argument(std::string("RefineOptions::") + field + " = " + fmt(v) + ": " + rule);
+    throw std::invalid_argument(std::string("RefineOptions::") + field + " = " + significant_digits(v, 3) +
+                                ": " + rule);
   };
   if (!(edge_margin >= 0 && edge_margin < 0.45)) fail("edge_margin", edge_margin, "must be in [0, 0.45)");
   if (!(max_window_px >= 0.8 && max_window_px <= 20))

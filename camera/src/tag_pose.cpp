@@ -1,6 +1,7 @@
 // The part's pose from AprilTags with known corners in the part frame.
 #include <clearfit/camera/tag_pose.hpp>
 #include <clearfit/error.hpp>
+#include <clearfit/format.hpp>
 #include <clearfit/yaml_key.hpp>
 #include <clearfit/geometry/ray_index.hpp>
 
@@ -22,13 +23,6 @@
 namespace clearfit {
 
 namespace {
-
-std::string fmt(double v) {
-  std::ostringstream s;
-  s.precision(4);
-  s << v;
-  return s.str();
-}
 
 std::string line_of(const YAML::Node& n) { return "line " + std::to_string(n.Mark().line + 1); }
 
@@ -180,7 +174,8 @@ TagLayout read_tag_layout(const std::filesystem::path& path) {
     if (!finite || !(lo > 0) || hi > 1.05 * lo || off_plane > 0.02 * lo || std::abs(diag_ratio - 1) > 0.05)
       throw InputError(
           file, where + " (id " + std::to_string(tag.id) + ")",
-          "corners_mm are not the 4 corners of a square (sides " + fmt(lo) + ".." + fmt(hi) + " mm)",
+          "corners_mm are not the 4 corners of a square (sides " + significant_digits(lo, 4) + ".." +
+              significant_digits(hi, 4) + " mm)",
           "list the outer corners of the black square in order bottom-left, bottom-right, top-right, "
           "top-left");
     layout.tags.push_back(tag);
@@ -193,9 +188,11 @@ void PoseOptions::validate() const {
     throw std::invalid_argument("PoseOptions::max_iterations = " + std::to_string(max_iterations) +
                                 ": must be 1..10000");
   if (!(outlier_sigma >= 0))
-    throw std::invalid_argument("PoseOptions::outlier_sigma = " + fmt(outlier_sigma) + ": must be >= 0");
+    throw std::invalid_argument("PoseOptions::outlier_sigma = " + significant_digits(outlier_sigma, 4) +
+                                ": must be >= 0");
   if (!(min_outlier_px >= 0))
-    throw std::invalid_argument("PoseOptions::min_outlier_px = " + fmt(min_outlier_px) + ": must be >= 0");
+    throw std::invalid_argument("PoseOptions::min_outlier_px = " + significant_digits(min_outlier_px, 4) +
+                                ": must be >= 0");
 }
 
 PartPose solve_part_pose(const CameraModel& camera, const TagLayout& layout,
@@ -270,7 +267,7 @@ PartPose solve_part_pose(const CameraModel& camera, const TagLayout& layout,
     if (kept.size() != corr.size() && kept.size() >= 4) {
       pose.outliers = static_cast<int>(corr.size() - kept.size());
       pose.notes.push_back(std::to_string(pose.outliers) + " corners dropped as outliers (residual > " +
-                           fmt(limit) + " px)");
+                           significant_digits(limit, 4) + " px)");
       corr.swap(kept);
       refine(camera, corr, R, t, options.max_iterations);
     }
@@ -304,7 +301,7 @@ PartPose solve_part_pose(const CameraModel& camera, const TagLayout& layout,
   pose.tags = static_cast<int>(used.size());
   pose.images = static_cast<int>(images.size());
   if (pose.rms_px > 2)
-    pose.notes.push_back("reprojection RMS " + fmt(pose.rms_px) +
+    pose.notes.push_back("reprojection RMS " + significant_digits(pose.rms_px, 4) +
                          " px is large: check the layout (corner order, units, ids) and the camera model");
   if (pose.tags == 1)
     pose.notes.push_back(

@@ -2,7 +2,7 @@
 #include <chrono>
 #include <climits>
 #include <clearfit/error.hpp>
-#include <clearfit/fit/format.hpp>
+#include <clearfit/format.hpp>
 #include <clearfit/fit/assessment.hpp>
 #include <cmath>
 #include <limits>

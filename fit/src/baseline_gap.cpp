@@ -1,6 +1,6 @@
 // The not-worn capture's gap from the captures (baseline_gap.hpp).
 #include <clearfit/fit/baseline_gap.hpp>
-#include <clearfit/fit/format.hpp>
+#include <clearfit/format.hpp>
 #include <clearfit/fit/blanching.hpp>
 
 #include <opencv2/imgproc.hpp>

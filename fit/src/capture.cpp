@@ -1,7 +1,7 @@
 #include <algorithm>
 #include <chrono>
 #include <clearfit/error.hpp>
-#include <clearfit/fit/format.hpp>
+#include <clearfit/format.hpp>
 #include <clearfit/fit/capture.hpp>
 #include <clearfit/fit/photometric.hpp>
 #include <clearfit/fit/srgb.hpp>

@@ -1,7 +1,7 @@
 // Glare on the clear part: detection in the window averages, its chart
 // texels, and hotspots that touch it (see glare.hpp).
 #include <clearfit/fit/glare.hpp>
-#include <clearfit/fit/format.hpp>
+#include <clearfit/format.hpp>
 #include <clearfit/fit/photometric.hpp>
 #include <clearfit/fit/srgb.hpp>
 

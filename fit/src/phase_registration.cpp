@@ -1,6 +1,6 @@
 // Registration of the phases on the chart (see phase_registration.hpp).
 #include <clearfit/fit/phase_registration.hpp>
-#include <clearfit/fit/format.hpp>
+#include <clearfit/format.hpp>
 
 #include <opencv2/imgproc.hpp>
 #include <opencv2/video/tracking.hpp>

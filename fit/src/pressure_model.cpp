@@ -3,6 +3,7 @@
 // pressure_model_io.cpp.
 #include <clearfit/error.hpp>
 #include <clearfit/fit/pressure_model.hpp>
+#include <clearfit/format.hpp>
 
 #include <Eigen/Dense>
 #include <unsupported/Eigen/NonLinearOptimization>
@@ -27,13 +28,6 @@ double sigmoid(double z) {
   if (z >= 0) return 1.0 / (1.0 + std::exp(-z));
   const double e = std::exp(z);
   return e / (1.0 + e);
-}
-
-std::string fmt(double v, int precision = 3) {
-  std::ostringstream s;
-  s.precision(precision);
-  s << v;
-  return s.str();
 }
 
 // Closed-form inverse of the logistic model with its derivatives. Returns
@@ -414,8 +408,9 @@ LinearFit linear_fit(const FitData& d) {
   const Eigen::Matrix2d cov = ssr / std::max(1, n - 2) * XtX.inverse();
   const LinearFit f{ab[0], ab[1], std::sqrt(cov(0, 0)), std::sqrt(cov(1, 1)), d.ss_tot > 0 ? 1 - ssr / d.ss_tot : kNaN};
   if (!(f.slope_per_kpa > 0))
-    throw InputError(d.src, "signal", "does not rise with pressure (linear slope " + fmt(f.slope_per_kpa) +
-                     " per kPa); blanching makes the green signal grow with pressure",
+    throw InputError(d.src, "signal",
+                     "does not rise with pressure (linear slope " + significant_digits(f.slope_per_kpa, 3) +
+                         " per kPa); blanching makes the green signal grow with pressure",
                      "check the signal's sign (ln of contact over baseline) and the pressure column");
   return f;
 }
@@ -613,13 +608,14 @@ void fit_warnings(const FitData& d, const std::vector<CalibrationPress>& presses
     warn.push_back("too few pressure levels: " + std::to_string(res.levels) +
                    " (the protocol asks for 8-10 levels over 0-30 kPa)");
   if (std::none_of(p.begin(), p.end(), [&](double v) { return std::abs(v - m.p50_kpa) <= m.width_kpa; }))
-    warn.push_back("no press within one width (" + fmt(m.width_kpa) + " kPa) of p50 = " + fmt(m.p50_kpa) +
+    warn.push_back("no press within one width (" + significant_digits(m.width_kpa, 3) +
+                   " kPa) of p50 = " + significant_digits(m.p50_kpa, 3) +
                    " kPa: the midpoint is not pinned by data; add levels near it");
   if (logistic_signal(m, p_max) < 0.9 * m.y_max)
-    warn.push_back("saturation not reached: the highest press (" + fmt(p_max) + " kPa) gives " +
-                   fmt(100 * logistic_signal(m, p_max) / m.y_max, 2) +
+    warn.push_back("saturation not reached: the highest press (" + significant_digits(p_max, 3) +
+                   " kPa) gives " + significant_digits(100 * logistic_signal(m, p_max) / m.y_max, 2) +
                    " % of y_max, so y_max is extrapolated; press up to about " +
-                   fmt(m.p50_kpa + 3 * m.width_kpa) + " kPa");
+                   significant_digits(m.p50_kpa + 3 * m.width_kpa, 3) + " kPa");
   for (std::size_t k = 1; k < levels.size(); ++k) {
     // Level means over the presses the robust fit kept (outliers are reported apart).
     auto mean = [&](const std::vector<int>& idx, int* count) {
@@ -636,8 +632,9 @@ void fit_warnings(const FitData& d, const std::vector<CalibrationPress>& presses
       double pa = 0, pb = 0;
       for (int i : levels[k - 1]) pa += p[i] / levels[k - 1].size();
       for (int i : levels[k]) pb += p[i] / levels[k].size();
-      warn.push_back("non-monotone data: the mean signal drops from " + fmt(pa) + " kPa to " + fmt(pb) +
-                     " kPa by " + fmt(drop / std::max(se, 1e-300), 2) + " standard errors");
+      warn.push_back("non-monotone data: the mean signal drops from " + significant_digits(pa, 3) +
+                     " kPa to " + significant_digits(pb, 3) + " kPa by " +
+                     significant_digits(drop / std::max(se, 1e-300), 2) + " standard errors");
     }
   }
   std::string outliers;
@@ -647,7 +644,8 @@ void fit_warnings(const FitData& d, const std::vector<CalibrationPress>& presses
   if (n_out)
     warn.push_back(std::to_string(n_out) + " press(es) down-weighted as outliers by the robust fit: trial " + outliers);
   if (m.p50_kpa < p_min || m.p50_kpa > p_max)
-    warn.push_back("p50 = " + fmt(m.p50_kpa) + " kPa lies outside the pressed range [" + fmt(p_min) + ", " + fmt(p_max) + "] kPa");
+    warn.push_back("p50 = " + significant_digits(m.p50_kpa, 3) + " kPa lies outside the pressed range [" +
+                   significant_digits(p_min, 3) + ", " + significant_digits(p_max, 3) + "] kPa");
 }
 
 }  // namespace

@@ -2,6 +2,7 @@
 // calibration JSON (`clearfit.pressure-calibration/1`).
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/error.hpp>
+#include <clearfit/format.hpp>
 #include <clearfit/utf8.hpp>
 #include <clearfit/fit/pressure_model.hpp>
 
@@ -41,12 +42,6 @@ std::vector<std::string> split_commas(const std::string& line) {
   }
 }
 
-std::string num(double v) {
-  std::ostringstream s;
-  s.precision(6);
-  s << v;
-  return s.str();
-}
 /// The ';'-separated ring profile columns of one row (both or neither; edges increasing, one signal per ring).
 void read_profile(const std::vector<std::string>& fields, const std::map<std::string, int>& col, const std::string& file,
                   const std::string& where, CalibrationPress& c) {
@@ -144,12 +139,15 @@ std::vector<CalibrationPress> read_presses_csv(const std::filesystem::path& path
     c.signal = *signal;
     const auto force = number("force_n"), diameter = number("indenter_diameter_mm"), pressure = number("mean_pressure_kpa");
     if (force && *force < 0)
-      throw InputError(file, where + ", column 'force_n'", "is negative (" + num(*force) + " N); expected a force >= 0 N",
+      throw InputError(file, where + ", column 'force_n'",
+                       "is negative (" + significant_digits(*force, 6) + " N); expected a force >= 0 N",
                        "load-cell readings in newtons, tare removed");
     if (diameter && !(*diameter > 0))
-      throw InputError(file, where + ", column 'indenter_diameter_mm'", "must be > 0 mm, found " + num(*diameter));
+      throw InputError(file, where + ", column 'indenter_diameter_mm'",
+                       "must be > 0 mm, found " + significant_digits(*diameter, 6));
     if (pressure && *pressure < 0)
-      throw InputError(file, where + ", column 'mean_pressure_kpa'", "is negative (" + num(*pressure) + " kPa); expected >= 0");
+      throw InputError(file, where + ", column 'mean_pressure_kpa'",
+                       "is negative (" + significant_digits(*pressure, 6) + " kPa); expected >= 0");
     c.force_n = force.value_or(kNaN);
     c.indenter_diameter_mm = diameter.value_or(kNaN);
     std::optional<double> computed;
@@ -158,8 +156,11 @@ std::vector<CalibrationPress> read_presses_csv(const std::filesystem::path& path
       computed = 1000.0 * *force / (std::numbers::pi * r * r);  // N/mm² = MPa → kPa
     }
     if (pressure && computed && std::abs(*pressure - *computed) > 0.01 * *computed + 0.01)
-      throw InputError(file, where, "mean_pressure_kpa " + num(*pressure) + " disagrees with force_n / (pi (d/2)^2) = " +
-                       num(*computed) + " kPa", "fix one of force_n, indenter_diameter_mm, mean_pressure_kpa, or leave mean_pressure_kpa empty");
+      throw InputError(
+          file, where,
+          "mean_pressure_kpa " + significant_digits(*pressure, 6) +
+              " disagrees with force_n / (pi (d/2)^2) = " + significant_digits(*computed, 6) + " kPa",
+          "fix one of force_n, indenter_diameter_mm, mean_pressure_kpa, or leave mean_pressure_kpa empty");
     if (!pressure && !computed)
       throw InputError(file, where, "gives no pressure: mean_pressure_kpa is empty and force_n / indenter_diameter_mm are incomplete", kHint);
     c.mean_pressure_kpa = pressure ? *pressure : *computed;
@@ -270,7 +271,9 @@ PressureCalibration read_pressure_calibration(const std::filesystem::path& path)
   cal.created = str(j, "created");
   const json& params = get(j, "parameters", "", json::value_t::object);
   auto positive = [&](double v, const std::string& key) {
-    if (!(v > 0) || !std::isfinite(v)) throw InputError(file, "key '" + key + "'", "must be a finite number > 0, found " + num(v));
+    if (!(v > 0) || !std::isfinite(v))
+      throw InputError(file, "key '" + key + "'",
+                       "must be a finite number > 0, found " + significant_digits(v, 6));
     return v;
   };
   int k = 3;

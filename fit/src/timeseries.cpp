@@ -1,5 +1,5 @@
 #include <clearfit/error.hpp>
-#include <clearfit/fit/format.hpp>
+#include <clearfit/format.hpp>
 #include <clearfit/fit/srgb.hpp>
 #include <clearfit/fit/timeseries.hpp>
 

@@ -2,6 +2,7 @@
 // when the surface is flat, else CGAL Surface_mesh_parameterization (LSCM or
 // ARAP) per connected component, scaled so 2D area equals 3D area.
 #include <clearfit/error.hpp>
+#include <clearfit/format.hpp>
 #include <clearfit/geometry/chart.hpp>
 
 #include "cgal_surface_mesh.hpp"
@@ -24,13 +25,6 @@ namespace {
 namespace SMP = CGAL::Surface_mesh_parameterization;
 using detail::first_few;
 using detail::SurfaceMesh;
-
-std::string number(double x) {
-  std::ostringstream s;
-  s.precision(3);
-  s << x;
-  return s.str();
-}
 
 /// Right-handed signed area of the 2D triangle (a, b, c).
 double signed_area(const Vec2& a, const Vec2& b, const Vec2& c) {
@@ -278,10 +272,10 @@ void measure(const Mesh& mesh, Chart& chart) {
   if (flipped)
     chart.notes.push_back(std::to_string(flipped) +
                           " faces are folded over in the chart (they overlap other faces)");
-  chart.notes.push_back("distortion: area ratio (2D/3D) " + number(chart.area_ratio_min) + " to " +
-                        number(chart.area_ratio_max) + ", angle error mean " +
-                        number(chart.angle_error_mean_deg) + "°, max " + number(chart.angle_error_max_deg) +
-                        "°");
+  chart.notes.push_back("distortion: area ratio (2D/3D) " + significant_digits(chart.area_ratio_min, 3) +
+                        " to " + significant_digits(chart.area_ratio_max, 3) + ", angle error mean " +
+                        significant_digits(chart.angle_error_mean_deg, 3) + "°, max " +
+                        significant_digits(chart.angle_error_max_deg, 3) + "°");
 }
 
 }  // namespace
@@ -335,9 +329,9 @@ Chart compute_chart(const Mesh& mesh, const ContactSurface& contact, const Chart
 
   if (options.method == ChartMethod::planar && !flat)
     throw InputError(mesh.source, "contact surface",
-                     "is not flat: a vertex lies " + number(plane.max_distance) +
+                     "is not flat: a vertex lies " + significant_digits(plane.max_distance, 3) +
                          " mm from the best-fit plane, more than planar_tolerance_mm = " +
-                         number(options.planar_tolerance_mm),
+                         significant_digits(options.planar_tolerance_mm, 3),
                      "use the lscm or arap chart, or raise the tolerance");
   if (flat && (options.method == ChartMethod::planar || options.method == ChartMethod::automatic)) {
     Chart planar = chart;
@@ -353,7 +347,7 @@ Chart compute_chart(const Mesh& mesh, const ContactSurface& contact, const Chart
     for (int v : verts) planar.uv[v] -= lo;  // chart starts at (0, 0)
     planar.origin = plane.centre + lo.x() * plane.axis_u + lo.y() * plane.axis_v;
     planar.notes.push_back("planar projection: the contact vertices lie within " +
-                           number(plane.max_distance) + " mm of their plane");
+                           significant_digits(plane.max_distance, 3) + " mm of their plane");
     measure(mesh, planar);
     if (planar.area_ratio_min > 0) return planar;
     if (options.method == ChartMethod::planar)
@@ -385,7 +379,7 @@ Chart compute_chart(const Mesh& mesh, const ContactSurface& contact, const Chart
   chart.notes.push_back(
       std::string(to_string(chart.method)) + " chart scaled so each piece keeps its 3D area" +
       (pieces.size() > 1 ? "; " + std::to_string(pieces.size()) + " pieces laid side by side, " +
-                               number(options.component_gap_mm) + " mm apart"
+                               significant_digits(options.component_gap_mm, 3) + " mm apart"
                          : ""));
   measure(mesh, chart);
   return chart;

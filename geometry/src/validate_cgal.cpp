@@ -4,6 +4,7 @@
 // (box_self_intersection_d + Do_intersect_3, as PMP does for meshes, since
 // CGAL 5.5 has no soup version), the outward test (orient_to_bound_a_volume,
 // which handles nested shells) and an AABB tree for the thickness rays.
+#include <clearfit/format.hpp>
 #include <clearfit/geometry/validate.hpp>
 
 #include "cgal_surface_mesh.hpp"
@@ -31,13 +32,6 @@ using detail::Kernel;
 using detail::to_point;
 
 constexpr size_t kMaxListedIntersections = 100;
-
-std::string number(double x) {
-  std::ostringstream s;
-  s.precision(3);
-  s << x;
-  return s.str();
-}
 
 std::string plural(size_t n, const std::string& one, const std::string& many) {
   return std::to_string(n) + " " + (n == 1 ? one : many);
@@ -382,8 +376,8 @@ ValidationReport validate_mesh(const Mesh& mesh, const ContactSurface* contact,
                    std::to_string(r.self_intersections[0][1]));
   if (!r.sliver_faces.empty())
     warn.push_back(plural(r.sliver_faces.size(), "face is a sliver", "faces are slivers") +
-                   " (an angle below " + number(options.sliver_min_angle_deg) + "°): file faces " +
-                   first_few(r.sliver_faces));
+                   " (an angle below " + significant_digits(options.sliver_min_angle_deg, 3) +
+                   "°): file faces " + first_few(r.sliver_faces));
   if (r.components > 1) warn.push_back("the mesh has " + std::to_string(r.components) + " separate pieces");
   {  // unwelded seams: distinct vertices of faces at exactly the same point
     std::vector<int> used;

@@ -2,9 +2,9 @@
 // (map_stages.hpp): rays and the part's bound, then the exact trace or the
 // quadtree, then the statistics.
 #include "map_stages.hpp"
-#include "npy.hpp"
 
 #include <clearfit/error.hpp>
+#include <clearfit/npy.hpp>
 #include <clearfit/refraction/map.hpp>
 
 #include <tbb/parallel_for.h>
@@ -72,9 +72,9 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
   bool any_in_front = false;
   for (const Vec3& v : mesh.vertices) any_in_front |= cam_from_part.apply(v).z() > 0;
   if (!any_in_front)
-    throw InputError("", "pose (cam_from_part)",
-                     "puts the whole part behind the camera (every vertex has z <= 0 in the camera frame)",
-                     "check the pose's direction and units (mm)");
+    throw PoseError("", "pose (cam_from_part)",
+                    "puts the whole part behind the camera (every vertex has z <= 0 in the camera frame)",
+                    "check the pose's direction and units (mm)");
 
   const std::shared_ptr<CameraRays> rays = camera_rays(camera);
   auto t0 = Clock::now();

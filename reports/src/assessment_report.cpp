@@ -2,6 +2,7 @@
 #include <chrono>
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/error.hpp>
+#include <clearfit/format.hpp>
 #include <clearfit/npy.hpp>
 #include <clearfit/reports/assessment_report.hpp>
 #include <clearfit/reports/assessment_tables.hpp>
@@ -18,13 +19,6 @@ namespace clearfit {
 namespace {
 
 using json = nlohmann::json;
-
-/// A finite number, or null (never NaN in the report).
-std::string fixed1(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.1f", v);
-  return buf;
-}
 
 json num(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
 json vec(const Vec3& v) { return v.allFinite() ? json{v.x(), v.y(), v.z()} : json(nullptr); }
@@ -383,9 +377,10 @@ std::vector<std::string> write_assessment_outputs(const Assessment& a, const Ass
   std::vector<HeatmapMarker> markers;
   for (const Hotspot& h : a.hotspots)
     if (h.centroid_mm.allFinite())
-      markers.push_back({h.id, h.centroid_mm,
-                         a.calibrated ? "hotspot " + std::to_string(h.id) + ": peak " + fixed1(h.peak) + " kPa"
-                                      : "hotspot " + std::to_string(h.id) + ": blanching"});
+      markers.push_back(
+          {h.id, h.centroid_mm,
+           a.calibrated ? "hotspot " + std::to_string(h.id) + ": peak " + fixed_digits(h.peak, 1) + " kPa"
+                        : "hotspot " + std::to_string(h.id) + ": blanching"});
   const std::vector<std::uint8_t> seen = vertex_seen(a, *scene.chart);
   auto glb = [&](bool pressure_view, const std::string& name) {
     HeatmapInput in;

@@ -1,6 +1,7 @@
 // Tables people paste: hotspots.csv, vertices.csv and heatmap.ply (the part
 // with its per-vertex values as scalar properties) beside heatmap.glb.
 #include <clearfit/atomic_file.hpp>
+#include <clearfit/format.hpp>
 #include <clearfit/reports/assessment_tables.hpp>
 
 #include <bit>
@@ -11,16 +12,6 @@
 
 namespace clearfit {
 namespace {
-
-/// A finite number with `digits` decimals, or an empty field.
-std::string field(double v, int digits) {
-  if (!std::isfinite(v)) return "";
-  std::ostringstream s;
-  s.setf(std::ios::fixed);
-  s.precision(digits);
-  s << v;
-  return s.str();
-}
 
 std::string threshold_name(double t, bool calibrated) {
   std::ostringstream s;
@@ -46,19 +37,22 @@ void write_hotspots_csv(const Assessment& a, const std::filesystem::path& path) 
   s << ",centroid_x_mm,centroid_y_mm,centroid_z_mm,centre_of_pressure_x_mm,centre_of_pressure_y_mm,centre_of_pressure_z_mm"
        ",centre_of_pressure_sigma_mm,unseen_area_mm2,unseen_share,texels,saturated_texels,touches_glare\n";
   for (const Hotspot& h : a.hotspots) {
-    s << h.id << ',' << field(h.peak, digits) << ',' << field(h.peak_sigma, digits) << ',' << field(h.mean, digits) << ','
-      << field(h.mean_sigma, digits) << ',' << field(h.area_mm2, 4) << ',' << field(h.half_peak_area_mm2, 4);
+    s << h.id << ',' << fixed_digits(h.peak, digits, "") << ',' << fixed_digits(h.peak_sigma, digits, "")
+      << ',' << fixed_digits(h.mean, digits, "") << ',' << fixed_digits(h.mean_sigma, digits, "") << ','
+      << fixed_digits(h.area_mm2, 4, "") << ',' << fixed_digits(h.half_peak_area_mm2, 4, "");
     for (double t : a.thresholds) {
       const HotspotLevel* level = nullptr;
       for (const HotspotLevel& l : h.levels)
         if (l.threshold == t) level = &l;
-      s << ',' << (level ? field(level->area_mm2, 4) : "") << ',' << (level ? field(level->area_sigma_mm2, 4) : "");
+      s << ',' << (level ? fixed_digits(level->area_mm2, 4, "") : "") << ','
+        << (level ? fixed_digits(level->area_sigma_mm2, 4, "") : "");
     }
     for (const Vec3* p : {&h.centroid_mm, &h.centre_of_pressure_mm})
-      for (int c = 0; c < 3; ++c) s << ',' << field((*p)[c], 4);
-    s << ',' << field(h.centre_of_pressure_sigma_mm, 4);
+      for (int c = 0; c < 3; ++c) s << ',' << fixed_digits((*p)[c], 4, "");
+    s << ',' << fixed_digits(h.centre_of_pressure_sigma_mm, 4, "");
     const double both = h.area_mm2 + h.unseen_area_mm2;
-    s << ',' << field(h.unseen_area_mm2, 4) << ',' << field(both > 0 ? h.unseen_area_mm2 / both : 0.0, 4) << ',' << h.texels << ','
+    s << ',' << fixed_digits(h.unseen_area_mm2, 4, "") << ','
+      << fixed_digits(both > 0 ? h.unseen_area_mm2 / both : 0.0, 4, "") << ',' << h.texels << ','
       << h.flagged_texels << ',' << (h.touches_mask ? 1 : 0) << '\n';
   }
   write_file_atomically(path, s.str());
@@ -72,10 +66,14 @@ void write_vertex_csv(const Assessment& a, const Mesh& mesh, const Chart& chart,
       const Vec3& p = mesh.vertices[v];
       const bool contact = v < chart.uv.size() && chart.uv[v].allFinite();
       const bool s = v < seen.size() && seen[v];
-      out << v << ',' << field(p.x(), 5) << ',' << field(p.y(), 5) << ',' << field(p.z(), 5) << ',' << (contact ? 1 : 0) << ','
-          << (s ? 1 : 0) << ',' << (s && a.calibrated ? field(a.vertex_pressure[v], 3) : "") << ','
-          << (s ? field(a.vertex_signal[v], 6) : "") << ','
-          << (s && a.calibrated && v < a.vertex_pressure_sigma.size() ? field(a.vertex_pressure_sigma[v], 3) : "") << '\n';
+      out << v << ',' << fixed_digits(p.x(), 5, "") << ',' << fixed_digits(p.y(), 5, "") << ','
+          << fixed_digits(p.z(), 5, "") << ',' << (contact ? 1 : 0) << ',' << (s ? 1 : 0) << ','
+          << (s && a.calibrated ? fixed_digits(a.vertex_pressure[v], 3, "") : "") << ','
+          << (s ? fixed_digits(a.vertex_signal[v], 6, "") : "") << ','
+          << (s && a.calibrated && v < a.vertex_pressure_sigma.size()
+                  ? fixed_digits(a.vertex_pressure_sigma[v], 3, "")
+                  : "")
+          << '\n';
     }
   });
 }

@@ -1,5 +1,6 @@
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/error.hpp>
+#include <clearfit/format.hpp>
 #include <clearfit/reports/chart_images.hpp>
 #include <clearfit/reports/colormap.hpp>
 
@@ -35,9 +36,7 @@ double nice_number(double x, bool round_up) {
 
 std::string format_tick(double v, double step) {
   const int decimals = std::max(0, static_cast<int>(-std::floor(std::log10(step) + 1e-9)));
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.*f", decimals, std::abs(v) < 0.5 * step * 1e-6 ? 0.0 : v);
-  return buf;
+  return fixed_digits(std::abs(v) < 0.5 * step * 1e-6 ? 0.0 : v, decimals);
 }
 
 // Text in white with a black rim, readable on any colour.

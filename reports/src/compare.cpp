@@ -5,6 +5,7 @@
 
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/error.hpp>
+#include <clearfit/format.hpp>
 #include <clearfit/geometry/mesh.hpp>
 #include <clearfit/reports/heatmap_glb.hpp>
 #include <clearfit/reports/report_html.hpp>
@@ -50,13 +51,9 @@ Assessment load(const fs::path& folder, const char* which) {
   return a;
 }
 
-std::string fixed(double v, int digits) {
-  if (!std::isfinite(v)) return "\xE2\x80\x94";
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.*f", digits, v);
-  return buf;
-}
-std::string signed_fixed(double v, int digits) { return (v > 0 ? "+" : "") + fixed(v, digits); }
+const char* const kDash = "\xE2\x80\x94";  // an em dash: "no value"
+
+std::string signed_fixed(double v, int digits) { return (v > 0 ? "+" : "") + fixed_digits(v, digits, kDash); }
 
 double get(const json& h, const char* key) {
   const auto it = h.find(key);
@@ -133,9 +130,12 @@ Correspondence correspond(const Assessment& A, const Assessment& B, const Compar
   c.matched_fraction = seen_b ? static_cast<double>(matched) / seen_b : 0;
   if (c.matched_fraction < o.min_matched_fraction)
     throw InputError(B.folder.string(), "contact surface",
-                     "does not correspond to " + A.folder.string() + ": only " + fixed(100 * c.matched_fraction, 1) +
-                         " % of its seen vertices lie within " + fixed(o.match_tolerance_mm, 3) + " mm of a seen vertex of A",
-                     "compare assessments of the same part, or of revisions with the same contact region in the same frame "
+                     "does not correspond to " + A.folder.string() + ": only " +
+                         fixed_digits(100 * c.matched_fraction, 1, kDash) +
+                         " % of its seen vertices lie within " +
+                         fixed_digits(o.match_tolerance_mm, 3, kDash) + " mm of a seen vertex of A",
+                     "compare assessments of the same part, or of revisions with the same contact region in "
+                     "the same frame "
                      "(or widen --match-tolerance-mm)");
   return c;
 }
@@ -201,14 +201,25 @@ std::string change_rows(const json& changes) {
     const std::string verdict = c["verdict"].get<std::string>();
     std::string words;
     const double d = c.value("delta_peak_kpa", json()).is_number() ? c["delta_peak_kpa"].get<double>() : NAN;
-    if (verdict == "better") words = "better: peak " + fixed(-d, 1) + " kPa lower";
-    else if (verdict == "worse") words = "worse: peak " + fixed(d, 1) + " kPa higher";
+    if (verdict == "better")
+      words = "better: peak " + fixed_digits(-d, 1, kDash) + " kPa lower";
+    else if (verdict == "worse")
+      words = "worse: peak " + fixed_digits(d, 1, kDash) + " kPa higher";
     else if (verdict == "unchanged") words = "unchanged within the uncertainty (" + signed_fixed(d, 1) + " kPa)";
-    else if (verdict == "gone") words = "gone in B (was " + fixed(c["a_peak_kpa"].is_number() ? c["a_peak_kpa"].get<double>() : NAN, 1) + " kPa)";
-    else if (verdict == "new") words = "new in B (" + fixed(c["b_peak_kpa"].is_number() ? c["b_peak_kpa"].get<double>() : NAN, 1) + " kPa)";
+    else if (verdict == "gone")
+      words = "gone in B (was " +
+              fixed_digits(c["a_peak_kpa"].is_number() ? c["a_peak_kpa"].get<double>() : NAN, 1, kDash) +
+              " kPa)";
+    else if (verdict == "new")
+      words = "new in B (" +
+              fixed_digits(c["b_peak_kpa"].is_number() ? c["b_peak_kpa"].get<double>() : NAN, 1, kDash) +
+              " kPa)";
     else words = "unknown";
-    auto id = [](const json& v) { return v.is_null() ? std::string("\xE2\x80\x94") : html_escape(v.dump()); };
-    auto kpa = [](const json& c, const char* k) { return c.contains(k) && c[k].is_number() ? fixed(c[k].get<double>(), 2) : std::string("\xE2\x80\x94"); };
+    auto id = [](const json& v) { return v.is_null() ? std::string(kDash) : html_escape(v.dump()); };
+    auto kpa = [](const json& c, const char* k) {
+      return c.contains(k) && c[k].is_number() ? fixed_digits(c[k].get<double>(), 2, kDash)
+                                               : std::string(kDash);
+    };
     rows += "<tr data-verdict=\"" + verdict + "\"><td>" + id(c["a_id"]) + "</td><td>" + id(c["b_id"]) + "</td><td>" + kpa(c, "a_peak_kpa") +
             "</td><td>" + kpa(c, "b_peak_kpa") + "</td><td>" + kpa(c, "delta_peak_kpa") + "</td><td>" + kpa(c, "delta_area_mm2") +
             "</td><td>" + html_escape(words) + "</td></tr>";
@@ -225,11 +236,13 @@ CompareResult compare_assessments(const fs::path& a_folder, const fs::path& b_fo
   const detail::PageAssets assets = detail::load_page_assets(o.assets_dir.empty() ? default_report_assets_dir() : o.assets_dir);
   const Correspondence corr = correspond(A, B, o);
   CompareResult result;
-  result.notes.push_back(corr.method == "same_vertices"
-                             ? "same mesh: vertices compared one to one"
-                             : "meshes differ: each seen vertex of B took the nearest seen vertex of A within " +
-                                   fixed(o.match_tolerance_mm, 3) + " mm (" + fixed(100 * corr.matched_fraction, 1) +
-                                   " % matched, farthest " + fixed(corr.max_distance_mm, 3) + " mm)");
+  result.notes.push_back(
+      corr.method == "same_vertices"
+          ? "same mesh: vertices compared one to one"
+          : "meshes differ: each seen vertex of B took the nearest seen vertex of A within " +
+                fixed_digits(o.match_tolerance_mm, 3, kDash) + " mm (" +
+                fixed_digits(100 * corr.matched_fraction, 1, kDash) + " % matched, farthest " +
+                fixed_digits(corr.max_distance_mm, 3, kDash) + " mm)");
 
   // Per-vertex difference on B's vertices where both saw the skin.
   const std::size_t nb = B.glb.vertex_count();
@@ -300,8 +313,16 @@ CompareResult compare_assessments(const fs::path& a_folder, const fs::path& b_fo
   // compare.html: summary sentences, the difference in 3D, the hotspot table.
   std::string body = "<header><h1>Design comparison</h1><p class=\"meta\">A: " + html_escape(a_folder.string()) + " &middot; B: " +
                      html_escape(b_folder.string()) + "</p><ul class=\"summary\">";
-  body += "<li>Peak pressure " + fixed(result.summary["peak_kpa"]["a"].is_number() ? result.summary["peak_kpa"]["a"].get<double>() : NAN, 1) +
-          " kPa &rarr; " + fixed(result.summary["peak_kpa"]["b"].is_number() ? result.summary["peak_kpa"]["b"].get<double>() : NAN, 1) + " kPa.</li>";
+  body +=
+      "<li>Peak pressure " +
+      fixed_digits(
+          result.summary["peak_kpa"]["a"].is_number() ? result.summary["peak_kpa"]["a"].get<double>() : NAN,
+          1, kDash) +
+      " kPa &rarr; " +
+      fixed_digits(
+          result.summary["peak_kpa"]["b"].is_number() ? result.summary["peak_kpa"]["b"].get<double>() : NAN,
+          1, kDash) +
+      " kPa.</li>";
   body += "<li>Over the surface both saw, B &minus; A is " + signed_fixed(sum / n, 2) + " kPa on average; the largest rise " +
           signed_fixed(max_inc, 1) + " kPa, the largest drop " + signed_fixed(max_dec, 1) + " kPa.</li>";
   body += "<li>" + html_escape(result.notes[0]) + ".</li></ul></header>";

@@ -1,4 +1,5 @@
 #include <clearfit/reports/mesh_report.hpp>
+#include <clearfit/format.hpp>
 
 #include <cstdio>
 #include <sstream>
@@ -6,11 +7,6 @@
 namespace clearfit::reports {
 namespace {
 nlohmann::json vec(const Vec3& v) { return {v.x(), v.y(), v.z()}; }
-std::string fmt(double v, int digits = 4) {
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.*g", digits, v);
-  return buf;
-}
 template <class T>
 std::string first_few(const std::vector<T>& items, std::size_t n = 8) {
   std::ostringstream s;
@@ -79,10 +75,13 @@ std::string to_text(const MeshInfo& info) {
   s << "mesh      " << m.source << "  (numbers in " << m.source_units << ", shown in mm)\n";
   s << "size      " << v.vertices << " vertices, " << v.faces << " triangles, " << v.components << " component"
     << (v.components == 1 ? "" : "s") << "\n";
-  s << "bbox      [" << fmt(v.bbox_min.x()) << ", " << fmt(v.bbox_min.y()) << ", " << fmt(v.bbox_min.z()) << "] .. ["
-    << fmt(v.bbox_max.x()) << ", " << fmt(v.bbox_max.y()) << ", " << fmt(v.bbox_max.z()) << "] mm\n";
-  s << "area      " << fmt(v.area_mm2, 6) << " mm²\n";
-  s << "volume    " << (v.volume_mm3 ? fmt(*v.volume_mm3, 6) + " mm³" : "n/a (mesh is open)") << "\n";
+  s << "bbox      [" << significant_digits(v.bbox_min.x(), 4) << ", " << significant_digits(v.bbox_min.y(), 4)
+    << ", " << significant_digits(v.bbox_min.z(), 4) << "] .. [" << significant_digits(v.bbox_max.x(), 4)
+    << ", " << significant_digits(v.bbox_max.y(), 4) << ", " << significant_digits(v.bbox_max.z(), 4)
+    << "] mm\n";
+  s << "area      " << significant_digits(v.area_mm2, 6) << " mm²\n";
+  s << "volume    " << (v.volume_mm3 ? significant_digits(*v.volume_mm3, 6) + " mm³" : "n/a (mesh is open)")
+    << "\n";
   s << "surface   " << (v.closed ? "closed" : "open, " + std::to_string(v.boundary_loops) + " boundary loop(s)")
     << "; orientation " << (v.consistently_oriented ? "consistent" : "INCONSISTENT")
     << (v.outward ? (*v.outward ? ", normals point out" : ", normals point IN") : "") << "\n";
@@ -95,19 +94,22 @@ std::string to_text(const MeshInfo& info) {
   if (!v.sliver_faces.empty()) s << "          sliver faces: " << first_few(v.sliver_faces) << "\n";
   if (!v.self_intersections.empty()) s << "          intersecting face pairs: " << first_few(v.self_intersections) << "\n";
   if (v.thickness_min_mm)
-    s << "thickness " << fmt(*v.thickness_min_mm) << " .. " << fmt(*v.thickness_max_mm)
+    s << "thickness " << significant_digits(*v.thickness_min_mm, 4) << " .. "
+      << significant_digits(*v.thickness_max_mm, 4)
       << " mm between the contact surface and the outer surface\n";
   if (info.contact) {
     const ContactSurface& c = *info.contact;
-    s << "contact   " << c.chosen_by << ": " << c.faces.size() << " faces, " << fmt(c.area_mm2, 6) << " mm², "
-      << c.components << " component" << (c.components == 1 ? "" : "s") << "\n";
+    s << "contact   " << c.chosen_by << ": " << c.faces.size() << " faces, "
+      << significant_digits(c.area_mm2, 6) << " mm², " << c.components << " component"
+      << (c.components == 1 ? "" : "s") << "\n";
   }
   if (info.chart) {
     const Chart& c = *info.chart;
-    s << "chart     " << to_string(c.method) << ", " << fmt(c.uv_max.x() - c.uv_min.x()) << " x "
-      << fmt(c.uv_max.y() - c.uv_min.y()) << " mm; area ratio " << fmt(c.area_ratio_min) << " .. "
-      << fmt(c.area_ratio_max) << ", angle error mean " << fmt(c.angle_error_mean_deg) << "°, max "
-      << fmt(c.angle_error_max_deg) << "°\n";
+    s << "chart     " << to_string(c.method) << ", " << significant_digits(c.uv_max.x() - c.uv_min.x(), 4)
+      << " x " << significant_digits(c.uv_max.y() - c.uv_min.y(), 4) << " mm; area ratio "
+      << significant_digits(c.area_ratio_min, 4) << " .. " << significant_digits(c.area_ratio_max, 4)
+      << ", angle error mean " << significant_digits(c.angle_error_mean_deg, 4) << "°, max "
+      << significant_digits(c.angle_error_max_deg, 4) << "°\n";
     for (const auto& n : c.notes) s << "          " << n << "\n";
   }
   for (const auto& n : m.import_notes) s << "note: " << n << "\n";

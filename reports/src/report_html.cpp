@@ -6,6 +6,7 @@
 
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/error.hpp>
+#include <clearfit/format.hpp>
 #include <clearfit/reports/colormap.hpp>
 
 #include <algorithm>
@@ -46,13 +47,10 @@ std::string base64(const std::string& bytes) {
                                  static_cast<unsigned int>(bytes.size()));
 }
 
-// Fixed-point text of a finite number; "—" otherwise (never "nan").
+// Fixed-point text of a finite number, never "-0.00" in the page; "—" otherwise (never "nan").
 std::string fixed(double v, int digits) {
-  if (!std::isfinite(v)) return kDash;
-  char buf[64];
-  std::snprintf(buf, sizeof buf, "%.*f", digits, v);
-  if (std::string(buf).find_first_not_of("-0.") == std::string::npos) std::snprintf(buf, sizeof buf, "%.*f", digits, 0.0);
-  return buf;
+  const std::string s = fixed_digits(v, digits, kDash);
+  return s.find_first_not_of("-0.") == std::string::npos ? fixed_digits(0.0, digits) : s;
 }
 
 bool is_number(const json& j) { return j.is_number() && std::isfinite(j.get<double>()); }

@@ -1,5 +1,6 @@
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/error.hpp>
+#include <clearfit/format.hpp>
 #include <clearfit/npy.hpp>
 #include <clearfit/reports/timeline_report.hpp>
 
@@ -17,12 +18,6 @@ namespace {
 using json = nlohmann::json;
 
 json finite(double v) { return std::isfinite(v) ? json(v) : json(nullptr); }
-
-std::string number(double v, int digits = 3) {
-  char buf[48];
-  std::snprintf(buf, sizeof buf, "%.*g", digits, v);
-  return buf;
-}
 
 json fit_json(const TimeConstantFit& f) {
   json j = {{"fitted", f.fitted}, {"bins", f.bins}, {"note", f.note}};
@@ -97,11 +92,12 @@ cv::Mat timeline_figure(const TimeAnalysis& t, const HotspotTimeline& h, bool ca
   const double xs = tick_step(x1 - x0, 10), ys = tick_step(y1 - y0, 6);
   for (double x = 0; x <= x1; x += xs) {
     cv::line(img, px(x, y0), px(x, y1), grey, 1);
-    cv::putText(img, number(x), px(x, y0) + cv::Point(-8, 20), font, 0.42, black, 1, cv::LINE_AA);
+    cv::putText(img, significant_digits(x, 3), px(x, y0) + cv::Point(-8, 20), font, 0.42, black, 1,
+                cv::LINE_AA);
   }
   for (double y = std::ceil(y0 / ys) * ys; y <= y1; y += ys) {
     cv::line(img, px(x0, y), px(x1, y), grey, 1);
-    const std::string s = number(std::abs(y) < 1e-12 ? 0.0 : y);
+    const std::string s = significant_digits(std::abs(y) < 1e-12 ? 0.0 : y, 3);
     cv::putText(img, s, px(x0, y) + cv::Point(-10 - 8 * static_cast<int>(s.size()), 5), font, 0.42, black, 1, cv::LINE_AA);
   }
   cv::rectangle(img, px(x0, y1), px(x1, y0), black, 1);
@@ -109,7 +105,8 @@ cv::Mat timeline_figure(const TimeAnalysis& t, const HotspotTimeline& h, bool ca
   for (const ThresholdTime& l : h.thresholds) {
     if (!std::isfinite(l.signal) || l.signal < y0 || l.signal > y1) continue;
     for (double x = x0; x < x1; x += (x1 - x0) / 60) cv::line(img, px(x, l.signal), px(std::min(x1, x + (x1 - x0) / 120), l.signal), red, 1);
-    cv::putText(img, number(l.threshold) + (calibrated ? " kPa" : ""), px(x1, l.signal) + cv::Point(-70, -4), font, 0.42, red, 1, cv::LINE_AA);
+    cv::putText(img, significant_digits(l.threshold, 3) + (calibrated ? " kPa" : ""),
+                px(x1, l.signal) + cv::Point(-70, -4), font, 0.42, red, 1, cv::LINE_AA);
   }
   std::vector<cv::Point> run;
   auto flush = [&] {
@@ -125,7 +122,8 @@ cv::Mat timeline_figure(const TimeAnalysis& t, const HotspotTimeline& h, bool ca
   if (h.onset.fitted) {
     cv::line(img, px(h.onset.t0_s, y0), px(h.onset.t0_s, y1), green, 1, cv::LINE_AA);
     cv::putText(img, "onset", px(h.onset.t0_s, y1) + cv::Point(4, 14), font, 0.42, green, 1, cv::LINE_AA);
-    title += ": onset " + number(h.onset.t0_s) + " s (tau " + number(h.onset.tau_s, 2) + " s)";
+    title += ": onset " + significant_digits(h.onset.t0_s, 3) + " s (tau " +
+             significant_digits(h.onset.tau_s, 2) + " s)";
   }
   if (t.release_frame >= 0) {
     const double tr = t.release_frame / t.fps;
@@ -136,7 +134,8 @@ cv::Mat timeline_figure(const TimeAnalysis& t, const HotspotTimeline& h, bool ca
       for (double x = tr; x <= x1; x += (x1 - tr) / 100 + 1e-9)
         curve.push_back(px(x, h.refill.offset + h.refill.amplitude * std::exp(-(x - h.refill.t0_s) / h.refill.tau_s)));
       cv::polylines(img, curve, false, orange, 1, cv::LINE_AA);
-      title += ", refill tau " + number(h.refill.tau_s, 2) + " +/- " + number(h.refill.tau_sigma_s, 1) + " s";
+      title += ", refill tau " + significant_digits(h.refill.tau_s, 2) + " +/- " +
+               significant_digits(h.refill.tau_sigma_s, 1) + " s";
     }
   }
   cv::putText(img, title, cv::Point(left, top - 24), font, 0.55, black, 1, cv::LINE_AA);
@@ -155,7 +154,8 @@ std::vector<std::string> write_timeline_outputs(const Assessment& a, const std::
   csv << "place,t_s,frames,signal" << (a.calibrated ? ",pressure_kpa" : "");
   const std::string unit = a.calibrated ? "kpa" : "signal";
   if (!t.hotspots.empty())
-    for (const ThresholdTime& l : t.hotspots.front().thresholds) csv << ",level_" << number(l.threshold) << "_" << unit << "_signal";
+    for (const ThresholdTime& l : t.hotspots.front().thresholds)
+      csv << ",level_" << significant_digits(l.threshold, 3) << "_" << unit << "_signal";
   csv << "\n";
   auto cell = [&](double v) {
     if (std::isfinite(v)) csv << v;

@@ -2,6 +2,8 @@
 
 #include "files.hpp"
 
+#include <clearfit/format.hpp>
+
 #include <opencv2/imgcodecs.hpp>
 #include <opencv2/imgproc.hpp>
 
@@ -20,11 +22,7 @@ double nice_step(double span, int n) {
   return 10 * mag;
 }
 
-std::string tick(double v) {
-  char buf[32];
-  std::snprintf(buf, sizeof buf, "%.4g", std::abs(v) < 1e-12 ? 0.0 : v);
-  return buf;
-}
+std::string tick(double v) { return significant_digits(std::abs(v) < 1e-12 ? 0.0 : v, 4); }
 
 }  // namespace
 

@@ -1,4 +1,5 @@
 #include <clearfit/study/analysis.hpp>
+#include <clearfit/format.hpp>
 #include <clearfit/study/fingertip_fe.hpp>
 
 #include <cmath>
@@ -36,9 +37,8 @@ std::string StressPls::important_depths() const {
     }
     std::size_t e = k;
     while (e + 1 < vip.size() && vip[e + 1] > 1) ++e;
-    char buf[64];
-    std::snprintf(buf, sizeof buf, "%.2f–%.2f mm", depth_mm[k], depth_mm[e]);
-    out += (out.empty() ? "" : ", ") + std::string(buf);
+    out +=
+        (out.empty() ? "" : ", ") + fixed_digits(depth_mm[k], 2) + "–" + fixed_digits(depth_mm[e], 2) + " mm";
     k = e + 1;
   }
   return out;

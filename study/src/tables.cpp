@@ -5,6 +5,7 @@
 
 #include <clearfit/error.hpp>
 #include <clearfit/fit/pressure_model.hpp>
+#include <clearfit/format.hpp>
 #include <clearfit/study/fingertip_fe.hpp>
 
 #include <cmath>
@@ -22,11 +23,7 @@ using json = nlohmann::json;
 /// A CSV field: numbers with 6 significant digits, null empty, text quoted when needed.
 std::string field(const json& v) {
   if (v.is_null()) return "";
-  if (v.is_number()) {
-    char buf[32];
-    std::snprintf(buf, sizeof buf, "%.6g", v.get<double>());
-    return buf;
-  }
+  if (v.is_number()) return significant_digits(v.get<double>(), 6);
   if (v.is_boolean()) return v.get<bool>() ? "true" : "false";
   std::string s = v.is_string() ? v.get<std::string>() : v.dump();
   if (s.find_first_of(",\"\n\r") == std::string::npos) return s;

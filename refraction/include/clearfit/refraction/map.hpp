@@ -9,6 +9,7 @@
 // entered through a non-contact face and the next face is a contact face; the
 // skin point is that intersection. Every invalid pixel carries a reason.
 #include <clearfit/camera/camera_model.hpp>
+#include <clearfit/error.hpp>
 #include <clearfit/geometry/chart.hpp>
 #include <clearfit/geometry/contact.hpp>
 #include <clearfit/geometry/ray_index.hpp>
@@ -162,10 +163,19 @@ SkinSample trace_skin_ray(const TraceScene& scene, const Vec3& origin, const Vec
 void trace_skin_rays(const TraceScene& scene, std::span<const Ray> rays, std::span<SkinSample> out,
                      const MapOptions& options = {});
 
+/// An InputError about the pose (`cam_from_part`) rather than the part or the
+/// camera: the map cannot be traced where the pose puts the part. Its file is
+/// empty; a caller that knows where the pose came from names that file
+/// (catching it by type, not by its message).
+class PoseError : public InputError {
+ public:
+  using InputError::InputError;
+};
+
 /// Traces every pixel of `camera` (its imager size), with `cam_from_part`
 /// placing the part. Throws std::invalid_argument on bad options, InputError
-/// when the scene cannot be traced (no contact faces, the whole part behind
-/// the camera). Parallel (TBB).
+/// when the scene cannot be traced (no contact faces), PoseError when the pose
+/// puts the whole part behind the camera. Parallel (TBB).
 RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel& camera,
                                      const Rigid3& cam_from_part, const MapOptions& options = {});
 
