@@ -216,10 +216,14 @@ Run add_calibrate_pressure(CLI::App& app) {
       ->check(CLI::IsMember({"logistic", "linear"}))->capture_default_str();
   sub->add_option("--loss", o->loss, "Robust loss of the logistic fit")->check(CLI::IsMember({"tukey", "huber", "none"}))->capture_default_str();
   sub->add_option("--pressure-field", o->field,
-                  "Pressure under the indenter: punch (Sneddon's flat punch, blurred; fitted to the presses' radial profiles) or "
-                  "uniform (F/(pi a^2) against the disc's mean signal, as the study); default punch when the presses carry profiles")
-      ->check(CLI::IsMember({"punch", "uniform"}));
-  sub->add_option("--blur-mm", o->field_fit.blur_sigma_mm, "The skin's lateral blur of the pressure (punch field), mm")->capture_default_str();
+                  "Pressure under the indenter: punch (Sneddon's flat punch, blurred; fitted to the presses' radial profiles), "
+                  "hertz (a sphere: Hertz's pressure over the contact radius of each force, blurred; presses with sphere_radius_mm) or "
+                  "uniform (F/(pi a^2) against the disc's mean signal, as the study); default hertz or punch when the presses carry "
+                  "profiles")
+      ->check(CLI::IsMember({"punch", "hertz", "uniform"}));
+  sub->add_option("--blur-mm", o->field_fit.blur_sigma_mm, "The skin's lateral blur of the pressure (punch and hertz fields), mm")->capture_default_str();
+  sub->add_option("--e-star-kpa", o->field_fit.e_star_kpa,
+                  "The skin's plane-strain modulus E* for the hertz field, kPa (0: fitted with the calibration)")->capture_default_str();
   sub->add_option("--report", o->report, "Output report (JSON): parameters, SE, R^2, RMSE, residuals per trial, warnings");
   sub->add_option("--plot", o->plot, "Output PNG of the fit: presses, logistic curve, linear line");
 
@@ -254,21 +258,23 @@ Run add_calibrate_pressure(CLI::App& app) {
     fo.source = o->presses;
     if (!o->camera.empty()) fo.camera_hash = format_intrinsics_hash(read_cameramodel(o->camera).intrinsics_hash());
     const bool profiles = presses_have_profiles(presses);
-    const std::string field = !o->field.empty() ? o->field : profiles ? "punch" : "uniform";
-    if (field == "punch" && fo.model == PressureModelKind::linear)
+    const bool spheres = std::all_of(presses.begin(), presses.end(), [](const auto& c) { return std::isfinite(c.sphere_radius_mm); });
+    const std::string field = !o->field.empty() ? o->field : !profiles ? "uniform" : spheres ? "hertz" : "punch";
+    if (field != "uniform" && fo.model == PressureModelKind::linear)
       throw InputError("", "--model linear", "is fitted to the disc's mean signal only", "use --pressure-field uniform with it");
-    const PressureFitResult r = field == "punch" ? fit_pressure_field(presses, fo, o->field_fit) : fit_pressure_calibration(presses, fo);
-    // The points drawn: the presses (uniform), or every ring at its mean blurred pressure (punch).
+    FieldFitOptions ff = o->field_fit;
+    ff.field = field == "hertz" ? PressureField::hertz : PressureField::punch;
+    const PressureFitResult r = field != "uniform" ? fit_pressure_field(presses, fo, ff) : fit_pressure_calibration(presses, fo);
+    // The points drawn: the presses (uniform), or every ring at its mean blurred pressure (punch, hertz).
     std::vector<CalibrationPress> points = presses;
     PressureFitResult drawn = r;
-    if (field == "punch") {
+    if (field != "uniform") {
       points.clear(), drawn.residuals.clear();
       for (const CalibrationPress& c : presses) {
-        const IndenterProfile profile(PressureField::punch, c.indenter_diameter_mm / 2, o->field_fit.blur_sigma_mm);
+        const std::vector<double> drive = ring_drives_kpa(c, ff, r.e_star_kpa);
         for (std::size_t k = 0; k < c.ring_signal.size(); ++k) {
           CalibrationPress ring = c;
-          const double r0 = c.ring_edges_mm[k], r1 = c.ring_edges_mm[k + 1];
-          ring.mean_pressure_kpa = c.force_n * profile.kpa_per_newton(std::sqrt(0.5 * (r0 * r0 + r1 * r1)));
+          ring.mean_pressure_kpa = drive[k];
           ring.signal = c.ring_signal[k];
           points.push_back(ring);
           drawn.residuals.push_back({});
@@ -280,14 +286,21 @@ Run add_calibrate_pressure(CLI::App& app) {
     std::string report;
     if (!o->report.empty()) {
       nlohmann::json j = report_json(r, o->presses, o->camera, o->out);
-      j["pressure_field"] = {{"kind", field}, {"blur_sigma_mm", field == "punch" ? jnum(o->field_fit.blur_sigma_mm) : jnum(NAN)}};
+      j["pressure_field"] = {{"kind", field}, {"blur_sigma_mm", field != "uniform" ? jnum(ff.blur_sigma_mm) : jnum(NAN)},
+                             {"e_star_kpa", jnum(r.e_star_kpa)}, {"e_star_se_kpa", jnum(r.e_star_se_kpa)},
+                             {"e_star_fitted", field == "hertz" && ff.e_star_kpa == 0}};
       report = j.dump(2) + "\n";
     }
     std::vector<unsigned char> png;
     if (!o->plot.empty() && !cv::imencode(".png", plot_fit(drawn, points), png))
       throw std::runtime_error("PNG encoding of the fit plot failed");
     print_summary(r, fo.loss);
-    std::printf("pressure field: %s%s\n", field.c_str(), field == "punch" ? " (Sneddon's flat punch, blurred; the presses' radial profiles)" : " (F / pi a^2)");
+    if (field == "hertz")
+      std::printf("pressure field: hertz (a sphere: Hertz's pressure over each force's contact radius, blurred; the presses' radial "
+                  "profiles); E* %s +- %s kPa (%s)\n", cell(r.e_star_kpa, 4).c_str(), cell(r.e_star_se_kpa, 3).c_str(),
+                  ff.e_star_kpa == 0 ? "fitted" : "given");
+    else
+      std::printf("pressure field: %s%s\n", field.c_str(), field == "punch" ? " (Sneddon's flat punch, blurred; the presses' radial profiles)" : " (F / pi a^2)");
     std::fflush(stdout);
     for (const auto& w : r.warnings) std::cerr << "clearfit: warning: " << w << "\n";
     write_pressure_calibration(r.calibration, o->out);

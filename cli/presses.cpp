@@ -29,18 +29,21 @@ std::string join(const std::vector<double>& v, std::size_t count) {
   return s.str();
 }
 
-std::string presses_csv(const SessionAnalysis& s, double radius_mm) {
+std::string presses_csv(const SessionAnalysis& s, double radius_mm, double sphere_radius_mm) {
   std::ostringstream out;
   out.precision(9);
   out << "# clearfit presses: " << s.video.string() << " + " << s.force_log.string() << "; clock offset " << s.clock.offset_s
       << " s, drift " << s.clock.drift * 1e6 << " ppm\n";
-  out << "trial,indenter_diameter_mm,force_n,mean_pressure_kpa,signal,force_sd_n,hold_frames,rest_frames,ring_edges_mm,ring_signal\n";
+  out << "trial,indenter_diameter_mm,force_n,mean_pressure_kpa,signal,force_sd_n,hold_frames,rest_frames,ring_edges_mm,ring_signal"
+      << (sphere_radius_mm > 0 ? ",sphere_radius_mm" : "") << "\n";
   for (std::size_t k = 0; k < s.presses.size(); ++k) {
     const SessionPress& p = s.presses[k];
     const double kpa = 1000 * p.force.force_n / (std::numbers::pi * radius_mm * radius_mm);
     out << k + 1 << "," << 2 * radius_mm << "," << p.force.force_n << "," << kpa << "," << p.signal << "," << p.force.force_sd_n << ","
         << p.hold_frames << "," << p.rest_frames << "," << join(s.ring_edges_mm, s.ring_edges_mm.size()) << ","
-        << join(p.ring_signal, p.ring_signal.size()) << "\n";
+        << join(p.ring_signal, p.ring_signal.size());
+    if (sphere_radius_mm > 0) out << "," << sphere_radius_mm;
+    out << "\n";
   }
   return out.str();
 }
@@ -121,6 +124,7 @@ Run add_presses(CLI::App& app) {
   struct Opts {
     std::string video, force_log, camera, out, report;
     std::vector<double> centre;
+    double sphere_radius_mm = 0;
     SessionOptions session;
   };
   auto o = std::make_shared<Opts>();
@@ -130,7 +134,10 @@ Run add_presses(CLI::App& app) {
   sub->add_option("--video", o->video, "The session's recording (video file or folder of frames)")->required();
   sub->add_option("--force-log", o->force_log, "Force log CSV (time and force columns with units in the header, e.g. time_s,force_n)")->required();
   sub->add_option("--camera", o->camera, "Camera model (.cameramodel) of the recording; its axis along the indenter's")->required();
-  sub->add_option("--indenter-radius-mm", s.indenter_radius_mm, "Radius a of the flat cylindrical indenter, mm")->required();
+  sub->add_option("--indenter-radius-mm", s.indenter_radius_mm,
+                  "Radius a of the flat cylindrical indenter, mm (a sphere: the radius of its cap, the disc read)")->required();
+  sub->add_option("--sphere-radius-mm", o->sphere_radius_mm,
+                  "The indenter is a sphere of this radius, mm (written with the presses: calibrate-pressure fits Hertz's pressure)");
   sub->add_option("--distance-mm", s.optics.distance_mm, "Camera centre to skin along the axis, mm")->capture_default_str();
   sub->add_option("--slab-mm", s.optics.slab_mm, "Thickness of the clear indenter the camera looks through, mm (0: directly)")->capture_default_str();
   sub->add_option("--slab-ior", s.optics.slab_ior, "Its refractive index")->capture_default_str();
@@ -144,17 +151,21 @@ Run add_presses(CLI::App& app) {
     SessionOptions opts = o->session;
     if (o->centre.size() == 2) opts.centre_px = Eigen::Vector2d(o->centre[0], o->centre[1]);
     opts.validate();
+    if (!(o->sphere_radius_mm >= 0 && o->sphere_radius_mm < 1000))
+      throw InputError("", "--sphere-radius-mm", "expected the sphere's radius in mm (> 0)");
     const std::filesystem::path out_dir = std::filesystem::path(o->out).parent_path();
     if (!out_dir.empty() && !std::filesystem::is_directory(out_dir))
       throw InputError(o->out, "--out", "its folder does not exist", "create the folder first");
     const CameraModel camera = read_cameramodel(o->camera);
     const SessionAnalysis a = analyse_session(o->video, o->force_log, camera, opts);
     // Everything is computed before the first file is written.
-    const std::string csv = presses_csv(a, opts.indenter_radius_mm);
+    const std::string csv = presses_csv(a, opts.indenter_radius_mm, o->sphere_radius_mm);
     std::string json;
     std::vector<unsigned char> png;
     if (!o->report.empty()) {
-      json = report_json(a, opts).dump(2) + "\n";
+      nlohmann::json j = report_json(a, opts);
+      j["indenter"]["sphere_radius_mm"] = o->sphere_radius_mm > 0 ? nlohmann::json(o->sphere_radius_mm) : nlohmann::json(nullptr);
+      json = j.dump(2) + "\n";
       if (!cv::imencode(".png", report_png(a, opts.indenter_radius_mm), png)) throw std::runtime_error("PNG encoding failed");
     }
     std::printf("%d frames at %.4g fps; %zu presses; clock offset %.4f +- %.4f s, drift %.1f +- %.1f ppm (%d events, correlation %.3f)\n",

@@ -30,12 +30,14 @@ Run add_simulate_session(CLI::App& app) {
   sub->add_option("--distance-mm", s.optics.distance_mm, "Camera centre to skin, mm")->capture_default_str();
   sub->add_option("--slab-mm", s.optics.slab_mm, "Clear indenter thickness between camera and skin, mm (0: seen directly)")->capture_default_str();
   sub->add_option("--slab-ior", s.optics.slab_ior, "Its refractive index")->capture_default_str();
-  sub->add_option("--indenter-radius-mm", s.indenter_radius_mm, "Flat cylindrical indenter radius a, mm")->capture_default_str();
+  sub->add_option("--indenter-radius-mm", s.indenter_radius_mm, "Flat cylindrical indenter radius a, mm (a sphere: its cap's radius)")->capture_default_str();
+  sub->add_option("--sphere-radius-mm", s.sphere_radius_mm, "A spherical indenter of this radius, mm (Hertz contact; 0: the flat punch)")->capture_default_str();
+  sub->add_option("--e-star-kpa", s.e_star_kpa, "The skin's plane-strain modulus E*, kPa (a sphere's contact radius)")->capture_default_str();
   sub->add_option("--fps", s.fps, "Video frame rate")->capture_default_str();
   sub->add_option("--noise-levels", s.noise_levels, "Sensor noise, 8-bit levels")->capture_default_str();
   sub->add_option("--presses", s.presses, "Number of presses")->capture_default_str();
   sub->add_option("--hold-s", s.hold_s, "Hold of each press, s")->capture_default_str();
-  sub->add_option("--max-kpa", s.max_kpa, "Highest mean pressure F/(pi a^2), kPa (the presses spread from --min-kpa)")->capture_default_str();
+  sub->add_option("--max-kpa", s.max_kpa, "Highest mean pressure F/(pi a^2), kPa (a sphere: over its contact disc; the presses spread from --min-kpa)")->capture_default_str();
   sub->add_option("--min-kpa", s.min_kpa, "Lowest mean pressure, kPa")->capture_default_str();
   sub->add_option("--overshoot", s.overshoot, "Force overshoot at each press's start (fraction)")->capture_default_str();
   sub->add_option("--gauge-hz", s.gauge_hz, "Force log sample rate")->capture_default_str();

@@ -101,8 +101,9 @@ std::vector<CalibrationPress> read_presses_csv(const std::filesystem::path& path
         if (header[k].empty()) throw InputError(file, where + " (header)", "column " + std::to_string(k + 1) + " has no name", kHint);
         if (!col.emplace(header[k], static_cast<int>(k)).second)
           throw InputError(file, where + " (header)", "column '" + header[k] + "' appears twice", kHint);
-        static const std::array<const char*, 10> known{"trial", "indenter_diameter_mm", "force_n", "mean_pressure_kpa", "signal",
-                                                       "force_sd_n", "hold_frames", "rest_frames", "ring_edges_mm", "ring_signal"};
+        static const std::array<const char*, 11> known{"trial", "indenter_diameter_mm", "force_n", "mean_pressure_kpa", "signal",
+                                                       "force_sd_n", "hold_frames", "rest_frames", "ring_edges_mm", "ring_signal",
+                                                       "sphere_radius_mm"};
         if (std::find(known.begin(), known.end(), header[k]) == known.end() && notes)
           notes->push_back(file + ": column '" + header[k] + "' is not used");
       }
@@ -150,6 +151,12 @@ std::vector<CalibrationPress> read_presses_csv(const std::filesystem::path& path
                        "is negative (" + significant_digits(*pressure, 6) + " kPa); expected >= 0");
     c.force_n = force.value_or(kNaN);
     c.indenter_diameter_mm = diameter.value_or(kNaN);
+    if (const auto sphere = number("sphere_radius_mm")) {
+      if (!(*sphere > 0))
+        throw InputError(file, where + ", column 'sphere_radius_mm'", "must be > 0 mm, found " + num(*sphere),
+                         "leave it empty for a flat indenter");
+      c.sphere_radius_mm = *sphere;
+    }
     std::optional<double> computed;
     if (force && diameter) {
       const double r = *diameter / 2;

@@ -4,12 +4,15 @@
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/error.hpp>
 #include <clearfit/fit/calibration_session.hpp>
+#include <clearfit/fit/contact_mechanics.hpp>
 #include <clearfit/fit/srgb.hpp>
 
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
 #include <cmath>
+#include <map>
+#include <memory>
 #include <numbers>
 #include <random>
 
@@ -34,6 +37,7 @@ std::vector<SessionPressTruth> schedule(const CalibrationSessionSpec& s, std::mt
   std::shuffle(kpa.begin(), kpa.end(), rng);
   std::uniform_real_distribution<double> rest(s.rest_min_s, s.rest_max_s);
   const double area_mm2 = std::numbers::pi * s.indenter_radius_mm * s.indenter_radius_mm;
+  const double e_star = s.e_star_kpa / 1000;  // N/mm²
   std::vector<SessionPressTruth> out;
   double t = std::max(0.0, s.offset_s) + s.lead_s;
   for (double p : kpa) {
@@ -42,6 +46,11 @@ std::vector<SessionPressTruth> schedule(const CalibrationSessionSpec& s, std::mt
     press.end_s = t + s.hold_s + 2 * s.ramp_s;
     press.mean_pressure_kpa = p;
     press.force_n = p * area_mm2 / 1000;
+    press.contact_radius_mm = s.indenter_radius_mm;
+    if (s.sphere_radius_mm > 0) {  // Hertz: p0 = 1.5 p_mean = 2E*a/(πR), F = π a² p_mean
+      press.contact_radius_mm = std::numbers::pi * s.sphere_radius_mm * 1.5 * p / 1000 / (2 * e_star);
+      press.force_n = std::numbers::pi * press.contact_radius_mm * press.contact_radius_mm * p / 1000;
+    }
     out.push_back(press);
     t = press.end_s + rest(rng);
   }
@@ -63,6 +72,27 @@ void write_force_log(const CalibrationSessionSpec& s, const std::vector<SessionP
   });
 }
 
+/// The sphere's drive per newton at each pixel's radius for the force of a frame: Hertz's profile of
+/// the contact radius the force makes, blurred (one table per force to 1e-4 N).
+class SphereDrive {
+ public:
+  explicit SphereDrive(const CalibrationSessionSpec& s) : s_(s) {}
+  void operator()(double force, const std::vector<float>& radius, std::vector<float>& drive_per_n) {
+    const long long key = std::llround(force * 1e4);
+    if (key <= 0) return;  // no force: the drive's factor is 0
+    auto& table = tables_[key];
+    if (!table) {
+      const double a = contact::HertzSphere{s_.sphere_radius_mm, double(key) * 1e-4, s_.e_star_kpa}.contact_radius_mm();
+      table = std::make_unique<IndenterProfile>(PressureField::hertz, a, s_.skin.blur_sigma_mm);
+    }
+    for (std::size_t i = 0; i < radius.size(); ++i) drive_per_n[i] = static_cast<float>(table->kpa_per_newton(radius[i]));
+  }
+
+ private:
+  const CalibrationSessionSpec& s_;
+  std::map<long long, std::unique_ptr<IndenterProfile>> tables_;
+};
+
 }  // namespace
 
 void CalibrationSessionSpec::validate() const {
@@ -79,6 +109,14 @@ void CalibrationSessionSpec::validate() const {
   need(presses >= 4 && presses <= 100, "--presses", "from 4 to 100");
   need(hold_s >= 2 && rest_min_s >= 2 && rest_max_s >= rest_min_s, "--hold-s", "hold >= 2 s, rests >= 2 s (min <= max)");
   need(min_kpa >= 0 && max_kpa > min_kpa, "--max-kpa", "mean pressures: 0 <= min < max");
+  need(sphere_radius_mm >= 0 && sphere_radius_mm < 1000, "--sphere-radius-mm", "from 0 (a flat punch) to 1000 mm");
+  need(e_star_kpa > 0 && e_star_kpa < 1e5, "--e-star-kpa", "from 0 to 100000 kPa");
+  if (sphere_radius_mm > 0) {  // the largest contact disc (overshoot included) inside the cap the presses are read over
+    const double a = std::numbers::pi * sphere_radius_mm * 1.5 * max_kpa / (2 * e_star_kpa) * std::cbrt(1 + overshoot);
+    need(a < indenter_radius_mm, "--max-kpa",
+         "the sphere's contact radius at --max-kpa is " + std::to_string(a) + " mm, beyond the cap's radius (--indenter-radius-mm " +
+             std::to_string(indenter_radius_mm) + "): lower --max-kpa or raise --e-star-kpa");
+  }
   need(ramp_s > 0 && ramp_s < hold_s / 2, "--ramp-s", "between 0 and half the hold");
   need(overshoot >= 0 && overshoot < 1, "--overshoot", "in [0, 1)");
   need(gauge_hz >= 5 && gauge_hz <= 10000, "--gauge-hz", "from 5 to 10000");
@@ -117,7 +155,7 @@ CalibrationSessionTruth render_calibration_session(const CalibrationSessionSpec&
   const IndenterProfile profile(PressureField::punch, s.indenter_radius_mm, s.skin.blur_sigma_mm);
   const SkinTexture texture(s.skin);
   const int n = s.width * s.height;
-  std::vector<float> albedo(n), drive_per_n(n);
+  std::vector<float> albedo(n), drive_per_n(n), radius(n);
   double nearest = 1e300;
   for (int v = 0; v < s.height; ++v)
     for (int u = 0; u < s.width; ++u) {
@@ -125,6 +163,7 @@ CalibrationSessionTruth render_calibration_session(const CalibrationSessionSpec&
       const double r = (skin - s.indenter_centre_mm).norm();
       albedo[v * s.width + u] = static_cast<float>(s.exposure * texture.modulation(skin));
       drive_per_n[v * s.width + u] = static_cast<float>(profile.kpa_per_newton(r));
+      radius[v * s.width + u] = static_cast<float>(r);
       if (r < nearest) nearest = r, truth.indenter_centre_px = Vec2(u, v);
     }
 
@@ -132,6 +171,7 @@ CalibrationSessionTruth render_calibration_session(const CalibrationSessionSpec&
   truth.video = capture_name("session", s.format);
   CaptureWriter writer(out / truth.video, s.format, s.fps, cv::Size(s.width, s.height));
   std::vector<double> blood(n, 0.0);
+  SphereDrive sphere_drive(s);
   cv::RNG noise_rng(s.seed ^ 0x5e55109ULL);
   cv::Mat frame(s.height, s.width, CV_8UC3), noise(s.height, s.width, CV_32FC3);
   const double dt = 1 / s.fps;
@@ -140,6 +180,7 @@ CalibrationSessionTruth render_calibration_session(const CalibrationSessionSpec&
     // interval's middle (the force at tv itself would let the skin answer half a frame early).
     const double tv = f * dt, force = true_force(s, truth.presses, (1 + drift) * (tv - dt / 2) + s.offset_s);
     const double pulse = pulse_waveform(tv, s.skin.pulse_hz);
+    if (s.sphere_radius_mm > 0) sphere_drive(force, radius, drive_per_n);
     const Eigen::Vector3d rest = radiance_factor(s.skin, 0, pulse);
     noise_rng.fill(noise, cv::RNG::NORMAL, 0.0, s.noise_levels / 255);
     for (int i = 0; i < n; ++i) {
@@ -163,7 +204,8 @@ CalibrationSessionTruth render_calibration_session(const CalibrationSessionSpec&
   using nlohmann::ordered_json;
   ordered_json presses = ordered_json::array();
   for (const auto& p : truth.presses)
-    presses.push_back({{"start_s", p.start_s}, {"end_s", p.end_s}, {"force_n", p.force_n}, {"mean_pressure_kpa", p.mean_pressure_kpa}});
+    presses.push_back({{"start_s", p.start_s}, {"end_s", p.end_s}, {"force_n", p.force_n}, {"mean_pressure_kpa", p.mean_pressure_kpa},
+                       {"contact_radius_mm", p.contact_radius_mm}});
   const ordered_json j = {
       {"schema", "clearfit.calibration-session-truth/1"},
       {"video", truth.video}, {"force_log", "force.csv"}, {"camera", "camera.cameramodel"},
@@ -171,7 +213,8 @@ CalibrationSessionTruth render_calibration_session(const CalibrationSessionSpec&
       {"clock", {{"offset_s", s.offset_s}, {"drift_ppm", s.drift_ppm}, {"note", "gauge time = (1 + drift) * video time + offset"}}},
       {"gauge", {{"hz", s.gauge_hz}, {"noise_n", s.force_noise_n}, {"tare_n", s.tare_n}, {"rest_drift_n", s.rest_drift_n},
                  {"overshoot", s.overshoot}}},
-      {"indenter", {{"radius_mm", s.indenter_radius_mm}, {"centre_mm", {s.indenter_centre_mm.x(), s.indenter_centre_mm.y()}},
+      {"indenter", {{"radius_mm", s.indenter_radius_mm}, {"shape", s.sphere_radius_mm > 0 ? "sphere" : "flat"},
+                    {"sphere_radius_mm", s.sphere_radius_mm}, {"e_star_kpa", s.e_star_kpa}, {"centre_mm", {s.indenter_centre_mm.x(), s.indenter_centre_mm.y()}},
                     {"centre_px", {truth.indenter_centre_px.x(), truth.indenter_centre_px.y()}},
                     {"slab_mm", s.optics.slab_mm}, {"slab_ior", s.optics.slab_ior}, {"distance_mm", s.optics.distance_mm}}},
       {"person", {{"y_max", truth.person.y_max}, {"p50_kpa", truth.person.p50_kpa}, {"width_kpa", truth.person.width_kpa},

@@ -1,5 +1,6 @@
 // Contact mechanics against closed forms (Sneddon punch, Hertz, Boussinesq).
 #include <clearfit/fit/contact_mechanics.hpp>
+#include <clearfit/fit/indenter_field.hpp>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -75,6 +76,34 @@ TEST(Hertz, ClosedFormsAndForce) {
   EXPECT_NEAR(h.peak_pressure_kpa(), 1.5 * mean_pressure_kpa(0.5, a), 1e-9);
   EXPECT_NEAR(disc_force_n([&](double r) { return h.pressure_kpa(r); }, a), 0.5, 1e-6);
   EXPECT_EQ(h.pressure_kpa(a * 1.01), 0.0);
+}
+
+// The sphere's profile per newton as the calibration fits it (indenter_field.hpp): unblurred, Hertz's closed
+// form (HertzSphere at the contact radius its force makes); blurred, the force is kept (∫ 2πr p dr = 1 N) and
+// the value at a radius equals a brute-force 2-D convolution of the closed form with the Gaussian; the
+// table and the one-radius evaluation agree.
+TEST(IndenterProfile, HertzKeepsTheForceAndMatchesABruteForceBlur) {
+  const HertzSphere h{10.0, 0.3, 180.0};
+  const double a = h.contact_radius_mm(), s = 0.3;
+  const clearfit::IndenterProfile sharp(clearfit::PressureField::hertz, a, 0), blurred(clearfit::PressureField::hertz, a, s);
+  for (double r : {0.0, 0.3 * a, 0.7 * a, 0.99 * a}) EXPECT_NEAR(sharp.kpa_per_newton(r) * h.force_n, h.pressure_kpa(r), 1e-9 * h.peak_pressure_kpa());
+  double force = 0;  // kPa·mm² → N: /1000
+  const double dr = 1e-3;
+  for (double r = dr / 2; r < a + 8 * s; r += dr) force += 2 * std::numbers::pi * r * blurred.kpa_per_newton(r) * dr / 1000;
+  EXPECT_NEAR(force, 1.0, 2e-3);
+  for (double r : {0.0, 0.5 * a, a, a + 0.4}) {
+    double sum = 0;  // ∫∫ p(|x'|) G(x − x') dx' on a 0.005 mm grid, x = (r, 0)
+    const double step = 0.005;
+    for (double x = -a; x <= a; x += step)
+      for (double y = -a; y <= a; y += step) {
+        const double rr = std::hypot(x, y);
+        if (rr >= a) continue;
+        const double d2 = (x - r) * (x - r) + y * y;
+        sum += sharp.kpa_per_newton(rr) * std::exp(-d2 / (2 * s * s)) / (2 * std::numbers::pi * s * s) * step * step;
+      }
+    EXPECT_NEAR(blurred.kpa_per_newton(r), sum, 2e-3 * blurred.kpa_per_newton(0)) << "r " << r;
+    EXPECT_NEAR(clearfit::blurred_hertz_kpa_per_newton(r, a, s), blurred.kpa_per_newton(r), 1e-3 * blurred.kpa_per_newton(0)) << "r " << r;
+  }
 }
 
 TEST(Boussinesq, PointLoadAxisAndEquilibrium) {

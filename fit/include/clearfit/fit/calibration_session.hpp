@@ -6,9 +6,15 @@
 // gauge's log with its own clock (offset, drift, noise, tare, overshoot, rest
 // drift), and the truth.
 //
+// The indenter may instead be a clear sphere (sphere_radius_mm > 0): Hertz's
+// pressure over a contact radius that grows with the force, its optics still
+// those of the flat slab (the sphere's sag over the contact, a²/2R, is left out
+// of the refraction).
+//
 // The camera looks along the indenter's axis (IndenterOptics). Each pixel
 // sees one skin point (closed-form slab refraction); its albedo is the skin
-// texture there; its drive is force(t)·IndenterProfile(punch, a, blur)(r);
+// texture there; its drive is force(t)·IndenterProfile(punch, a, blur)(r)
+// (the sphere: IndenterProfile(hertz, a(force(t)), blur));
 // blood loss lags the drive (τ_on/τ_off); green radiance follows SKIN.md; the
 // sensor adds Gaussian noise in 8-bit levels, then sRGB, 8 bits.
 #include <clearfit/camera/camera_model.hpp>
@@ -29,7 +35,9 @@ struct CalibrationSessionSpec {
   int width = 160, height = 120;
   double focal_px = 600;             ///< pinhole camera written beside the video
   IndenterOptics optics{60, 3, 1.49};
-  double indenter_radius_mm = 2.5;
+  double indenter_radius_mm = 2.5;  ///< the flat punch's radius; a sphere's cap (the disc the presses are read over)
+  double sphere_radius_mm = 0;       ///< > 0: a spherical indenter of this radius (Hertz), else the flat punch
+  double e_star_kpa = 150;           ///< the skin's plane-strain modulus E* (the sphere's contact radius)
   Vec2 indenter_centre_mm = Vec2(0.6, -0.4);  ///< on the skin, from the optical axis
   double fps = 15;
   double exposure = 0.8;             ///< linear value of a white skin at full light
@@ -37,7 +45,7 @@ struct CalibrationSessionSpec {
   // presses (gauge clock)
   int presses = 14;
   double hold_s = 5, rest_min_s = 12, rest_max_s = 18, lead_s = 8;  // rests: the skin refills (τ_off) before its baseline
-  double min_kpa = 4, max_kpa = 40;  ///< mean pressure of the presses (F/πa²), spread in random order
+  double min_kpa = 4, max_kpa = 40;  ///< mean pressure of the presses (F/πa²; a sphere: over its contact disc), spread in random order
   double ramp_s = 0.3, overshoot = 0.08, overshoot_tau_s = 0.4;
   // gauge
   double gauge_hz = 50, offset_s = 3.7, drift_ppm = 300, force_noise_n = 0.003, tare_n = 0.05, rest_drift_n = 0.005;
@@ -51,6 +59,7 @@ struct CalibrationSessionSpec {
 struct SessionPressTruth {
   double start_s = 0, end_s = 0;  ///< gauge clock, force above zero
   double force_n = 0, mean_pressure_kpa = 0;
+  double contact_radius_mm = 0;  ///< the punch's radius, or the sphere's Hertz contact radius
 };
 
 struct CalibrationSessionTruth {

@@ -28,16 +28,24 @@ struct IndenterOptics {
   Eigen::Vector2d skin_point(const Eigen::Vector3d& ray) const;
 };
 
-enum class PressureField { punch, uniform };
+enum class PressureField { punch, uniform, hertz };
 const char* to_string(PressureField field);
 
 /// The blurred pressure profile of an indenter of radius a for a force of 1 N,
 /// tabulated in r (0 to a + 6σ, step σ/20; beyond it 0): kPa per newton.
 ///   punch:   p(r) = 1/(2πa√(a² − r²))   (Sneddon; the rim singularity is integrable)
 ///   uniform: p(r) = 1/(πa²) for r < a
+///   hertz:   p(r) = 3/(2πa²)·√(1 − r²/a²)  (a sphere; a is the contact radius,
+///            which grows with the force: contact::HertzSphere)
 /// blurred by an isotropic Gaussian of σ (0: not blurred; the punch then is its
 /// closed form, capped nowhere). The radial convolution is exact in the angle
-/// (the Bessel I0 form); the punch's r' = a·sin φ removes the singularity.
+/// (the Bessel I0 form); the punch's and the sphere's r' = a·sin φ removes the
+/// singularity (the punch) and the square root's kink (the sphere).
+/// The blurred Hertz profile at r (kPa per newton) for contact radius a, computed
+/// at that one radius (no table: for fits whose a changes with every evaluation).
+/// Equals IndenterProfile(hertz, a, σ).kpa_per_newton(r) to the table's interpolation.
+double blurred_hertz_kpa_per_newton(double r_mm, double contact_radius_mm, double blur_sigma_mm);
+
 class IndenterProfile {
  public:
   IndenterProfile(PressureField field, double radius_mm, double blur_sigma_mm);

@@ -11,6 +11,15 @@
 // unsupported LevenbergMarquardt) on (ln y_max, p50, ln w) from the
 // uniform fit of the disc means; covariance s²(JᵀJ)⁻¹ over the rings (rings of
 // one press share its baseline noise: the σ are a lower bound).
+//
+// A spherical indenter (presses with sphere_radius_mm, field hertz): q is
+// Hertz's 3/(2πa²)·√(1 − r²/a²) blurred, with the contact radius
+// a = (3FR/(4E*))^{1/3} of each press's force (SKIN.md). The skin's E* is
+// given (FieldFitOptions::e_star_kpa) or fitted as a fourth parameter ln E*,
+// started from the radius where the strongest press's profile falls to half
+// its centre (taken as a) with the logistic first fitted at that E*; the
+// calibration's covariance is then the logistic's block of the 4×4 one (E*'s
+// uncertainty included).
 #include <clearfit/fit/indenter_field.hpp>
 #include <clearfit/fit/pressure_model.hpp>
 
@@ -20,7 +29,8 @@ struct FieldFitOptions {
   PressureField field = PressureField::punch;
   double blur_sigma_mm = 0.3;   ///< the skin's lateral blur (SKIN.md)
   int samples_per_ring = 8;
-  void validate() const;        ///< throws InputError naming --blur-mm
+  double e_star_kpa = 0;        ///< hertz: the skin's plane-strain modulus E* (kPa); 0: fitted
+  void validate() const;        ///< throws InputError naming --blur-mm or --e-star-kpa
 };
 
 /// Whether every press carries a radial profile.
@@ -31,8 +41,14 @@ bool presses_have_profiles(const std::vector<CalibrationPress>& presses);
 /// them. rmse_kpa: the rings' signals inverted against the rings' mean drive
 /// (blurred pressure), over the rings inside the invertible range
 /// (presses_in_range counts those rings). Throws InputError naming the file and
-/// line of a press without a profile, force or indenter diameter.
+/// line of a press without a profile, force or indenter diameter, or (hertz)
+/// without sphere_radius_mm. The hertz fit fills the result's e_star_kpa and e_star_se_kpa.
 PressureFitResult fit_pressure_field(const std::vector<CalibrationPress>& presses, const PressureFitOptions& options,
                                      const FieldFitOptions& field);
+
+/// The rings' mean drive (kPa) of one press under the field, as the fit models
+/// it (the mean over equal-area sub-radii): for the fit's plot. e_star_kpa is
+/// used by hertz only.
+std::vector<double> ring_drives_kpa(const CalibrationPress& press, const FieldFitOptions& field, double e_star_kpa);
 
 }  // namespace clearfit

@@ -38,6 +38,10 @@ struct CalibrationPress {
   /// [ring_edges_mm[k], ring_edges_mm[k+1]) from the indenter's axis on the skin;
   /// ring_signal[k] is y averaged there. Empty when the file has no profile.
   std::vector<double> ring_edges_mm, ring_signal;
+  /// A spherical indenter's radius (mm; column `sphere_radius_mm`): its pressure is Hertz's over a
+  /// contact radius that grows with the force, and indenter_diameter_mm is the disc `signal` was read
+  /// over. NaN: a flat indenter.
+  double sphere_radius_mm = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// Reads calibration presses from a CSV file with a header row naming the
@@ -53,7 +57,8 @@ struct CalibrationPress {
 /// diameter, wrong field count, inconsistent pressure, no data rows).
 /// Optional columns `ring_edges_mm` (n + 1 increasing radii) and `ring_signal`
 /// (n values), each ';'-separated, give the radial profile; other columns
-/// written by `clearfit presses` (force_sd_n, hold_frames, rest_frames) are known.
+/// written by `clearfit presses` (force_sd_n, hold_frames, rest_frames, sphere_radius_mm) are known;
+/// sphere_radius_mm, when given, must be > 0.
 std::vector<CalibrationPress> read_presses_csv(const std::filesystem::path& path,
                                                std::vector<std::string>* notes = nullptr);
 
@@ -184,6 +189,9 @@ struct PressureFitResult {
   int levels = 0;                   ///< distinct pressure levels found
   bool converged = true;
   int iterations = 0;               ///< LM iterations over all IRLS rounds
+  /// The Hertz field fit (a spherical indenter): the skin's plane-strain modulus E* (kPa) it used,
+  /// fitted (with its SE) or given (SE 0); NaN for the other fits.
+  double e_star_kpa = std::numeric_limits<double>::quiet_NaN(), e_star_se_kpa = std::numeric_limits<double>::quiet_NaN();
   std::vector<PressResidual> residuals;
   std::vector<std::string> warnings;  ///< too few levels, no data near p50, no saturation, non-monotone, outliers
 };
