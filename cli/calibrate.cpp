@@ -5,6 +5,7 @@
 
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/output_folder.hpp>
+#include <clearfit/camera/projection_uncertainty.hpp>
 #include <clearfit/camera/board.hpp>
 #include <clearfit/camera/calibrate.hpp>
 #include <clearfit/camera/camera_model.hpp>
@@ -171,7 +172,16 @@ std::vector<std::string> write_calibration(const CalibrateArgs& a, const Calibra
                                            const BoardViews& views, const std::optional<Board>& board) {
   std::vector<std::string> written;
   try {
-    write_cameramodel(result.model, a.out);
+    // The projection uncertainty travels with the model (projection_uncertainty.hpp) when every cell has one.
+    const bool uncertainty = !result.uncertainty_px.empty() &&
+                             std::all_of(result.uncertainty_px.begin(), result.uncertainty_px.end(), [](double v) { return v >= 0; });
+    if (uncertainty)
+      write_cameramodel(result.model,
+                        ProjectionUncertainty{result.uncertainty_cells_x, result.uncertainty_cells_y, result.uncertainty_distance_mm,
+                                              result.uncertainty_px},
+                        a.out);
+    else
+      write_cameramodel(result.model, a.out);
     written.push_back(a.out);
     if (!a.report.empty()) {
       write_file_atomically(a.report, report.dump(2) + "\n");

@@ -39,6 +39,7 @@ std::unique_ptr<LoadedPart> load_part_scene(const Scene& scene, bool need_chart,
   part->contact = select_contact(part->mesh, *selector);
   part->camera = read_cameramodel(o.camera);
   part->camera_source = o.camera;
+  part->projection_uncertainty = read_projection_uncertainty(o.camera);
   if (o.pose.empty()) {
     part->cam_from_part = part->camera.cam_from_part;
   } else {

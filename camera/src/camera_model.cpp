@@ -3,6 +3,7 @@
 #include "mrcal_api.hpp"
 
 #include <clearfit/atomic_file.hpp>
+#include <clearfit/camera/projection_uncertainty.hpp>
 #include <clearfit/error.hpp>
 
 #include <algorithm>
@@ -340,9 +341,9 @@ CameraModel read_cameramodel(const std::filesystem::path& path) {
   return model;
 }
 
-void write_cameramodel(const CameraModel& model, const std::filesystem::path& path) {
+std::string cameramodel_text(const CameraModel& model) {
   if (auto p = find_problem(model))
-    throw std::invalid_argument("write_cameramodel(" + path.string() + "): key '" + p->key + "' " + p->problem);
+    throw std::invalid_argument("write_cameramodel: key '" + p->key + "' " + p->problem);
   const auto rt = model.cam_from_part.to_rt();
   std::string s;
   s += "# mrcal .cameramodel written by clearfit\n{\n";
@@ -353,7 +354,17 @@ void write_cameramodel(const CameraModel& model, const std::filesystem::path& pa
   s += "    # r is a Rodrigues vector in radians, t in millimetres\n";
   s += "    'extrinsics': " + list_of(rt.data(), rt.size()) + ",\n\n";
   s += "    'imagersize': [ " + std::to_string(model.width) + ", " + std::to_string(model.height) + ", ],\n}\n";
-  write_file_atomically(path, s);
+  return s;
+}
+
+void write_cameramodel(const CameraModel& model, const std::filesystem::path& path) {
+  std::string text;
+  try {
+    text = cameramodel_text(model);
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument("write_cameramodel(" + path.string() + "): " + std::string(e.what()).substr(std::string("write_cameramodel: ").size()));
+  }
+  write_file_atomically(path, text);
 }
 
 }  // namespace clearfit

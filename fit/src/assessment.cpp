@@ -159,10 +159,62 @@ ChartField position_sigma(const ChartRaster& raster, const Rigid3& cam_from_part
   return out;
 }
 
-/// The signal's σ: its noise and, where the position is uncertain, |∇y|·σ_pos in quadrature (∇y by central
-/// differences on the chart, one-sided beside unseen texels).
-ChartField signal_sigma(const BlanchingSignal& signal, const ChartField& position_mm) {
+/// The camera's projection uncertainty on the chart: a pixel's ray errs by δq (σ_q px per image axis, the
+/// worst direction's σ taken for both), which moves the skin point a texel reads by A·δq, A = (∂pixel/∂uv)⁻¹
+/// (the inverse map's Jacobian by central differences, one-sided at its edges). Per texel: the skin
+/// position's σ per axis, σ_q·‖A‖_F/√2 (mm), and the signal's, σ_q·|Aᵀ∇y|.
+struct IntrinsicsTerm {
+  ChartField position_mm, signal;
+};
+IntrinsicsTerm intrinsics_term(const InverseMap& inv, const ChartField& y, const ProjectionUncertainty& u, const CameraModel& camera) {
+  const ChartGrid& grid = y.grid;
+  IntrinsicsTerm out{{grid, std::vector<float>(grid.size(), kNaN)}, {grid, std::vector<float>(grid.size(), kNaN)}};
+  auto pixel = [&](int i, int j) {
+    const auto k = inv.index(i, j);
+    return inv.valid[k] ? Vec2(inv.map_x[k], inv.map_y[k]) : Vec2(kNaN, kNaN);
+  };
+  auto derivative = [&](int i, int j, int di, int dj) {  // ∂pixel per mm along (di, dj)
+    const bool ahead = i + di < inv.width && j + dj < inv.height, behind = i - di >= 0 && j - dj >= 0;
+    const Vec2 a = ahead ? pixel(i + di, j + dj) : Vec2(kNaN, kNaN), b = behind ? pixel(i - di, j - dj) : Vec2(kNaN, kNaN), c = pixel(i, j);
+    if (a.allFinite() && b.allFinite()) return Vec2((a - b) / (2 * inv.texel_mm));
+    if (a.allFinite()) return Vec2((a - c) / inv.texel_mm);
+    if (b.allFinite()) return Vec2((c - b) / inv.texel_mm);
+    return Vec2(kNaN, kNaN);
+  };
+  for (int j = 0; j < inv.height; ++j)
+    for (int i = 0; i < inv.width; ++i) {
+      const Vec2 q = pixel(i, j);
+      if (!q.allFinite()) continue;
+      Eigen::Matrix2d J;
+      J.col(0) = derivative(i, j, 1, 0), J.col(1) = derivative(i, j, 0, 1);
+      if (!J.allFinite() || std::abs(J.determinant()) < 1e-12) continue;
+      const Eigen::Matrix2d A = J.inverse();
+      const double sigma_q = u.at(q, camera.width, camera.height);
+      const auto k = grid.index(i, j);
+      out.position_mm.value[k] = static_cast<float>(sigma_q * A.norm() / std::sqrt(2.0));
+      if (std::isfinite(y.value[k])) out.signal.value[k] = static_cast<float>(sigma_q * (A.transpose() * gradient(y, i, j)).norm());
+    }
+  return out;
+}
+
+/// The pose's and the intrinsics' position σ in quadrature (either may be empty).
+ChartField position_sigma_total(const ChartField& pose, const ChartField& intrinsics) {
+  if (pose.value.empty()) return intrinsics;
+  if (intrinsics.value.empty()) return pose;
+  ChartField out = pose;
+  for (std::size_t k = 0; k < out.value.size(); ++k) {
+    const float a = pose.value[k], b = intrinsics.value[k];
+    out.value[k] = std::isfinite(a) && std::isfinite(b) ? std::hypot(a, b) : std::isfinite(a) ? a : b;
+  }
+  return out;
+}
+
+/// The signal's σ: its noise, the intrinsics' term (intrinsics_term) and, where the pose is uncertain,
+/// |∇y|·σ_pos in quadrature (∇y by central differences on the chart, one-sided beside unseen texels).
+ChartField signal_sigma(const BlanchingSignal& signal, const ChartField& position_mm, const ChartField& intrinsics_signal) {
   ChartField out = signal.sigma_y;
+  for (std::size_t k = 0; k < intrinsics_signal.value.size(); ++k)
+    if (std::isfinite(out.value[k]) && std::isfinite(intrinsics_signal.value[k])) out.value[k] = std::hypot(out.value[k], intrinsics_signal.value[k]);
   if (position_mm.value.empty()) return out;
   const ChartGrid& g = signal.y.grid;
   const auto& y = signal.y.value;
@@ -497,7 +549,14 @@ BlanchingOptions chart_signal(const AssessmentScene& scene, bool own_geometry, c
   for (const auto& w : a.signal.warnings) a.warnings.push_back(w);
   a.raster = rasterize_chart(*scene.mesh, *scene.chart, a.signal.y.grid);
   if (scene.pose_covariance) a.position_sigma_mm = position_sigma(a.raster, scene.cam_from_part, *scene.pose_covariance);
-  a.signal_sigma = signal_sigma(a.signal, a.position_sigma_mm);
+  IntrinsicsTerm intrinsics;
+  if (scene.projection_uncertainty && scene.camera && inv.width == a.signal.y.grid.width && inv.height == a.signal.y.grid.height)
+    intrinsics = intrinsics_term(inv, a.signal.y, *scene.projection_uncertainty, *scene.camera);
+  else
+    a.warnings.push_back("the camera model carries no projection uncertainty (write it with `clearfit calibrate`): the pressure's "
+                         "sigma has no term for the intrinsics (0 used)");
+  a.intrinsics_sigma_mm = intrinsics.position_mm;
+  a.signal_sigma = signal_sigma(a.signal, a.position_sigma_mm, intrinsics.signal);
   return bo;
 }
 
@@ -568,7 +627,7 @@ void pressure_and_hotspots(const AssessmentScene& scene, const std::optional<Pre
     a.hotspots = find_hotspots(a.signal.y, &a.signal_sigma, nullptr, a.raster, ho, &a.hotspot_labels, scene.mesh);
     a.warnings.push_back("no pressure calibration: the report shows the blanching signal and where it is significant, not kPa");
   }
-  add_position_to_centres(a.hotspots, a.hotspot_labels, a.position_sigma_mm);
+  add_position_to_centres(a.hotspots, a.hotspot_labels, position_sigma_total(a.position_sigma_mm, a.intrinsics_sigma_mm));
   flag_hotspots_at_mask(a.hotspots, a.hotspot_labels, a.glare_texels, g);
   for (const Hotspot& h : a.hotspots)
     if (h.touches_mask)

@@ -79,7 +79,9 @@ Eigen::Vector3d closest_barycentric(const Vec3& p, const Vec3& a, const Vec3& b,
 }
 
 /// |∇v| at texel (i, j) per mm: central differences, one-sided beside undefined texels; 0 when neither side is.
-double gradient_norm(const ChartField& f, int i, int j) {
+double gradient_norm(const ChartField& f, int i, int j) { return gradient(f, i, j).norm(); }
+
+Eigen::Vector2d gradient(const ChartField& f, int i, int j) {
   const ChartGrid& g = f.grid;
   auto along = [&](int di, int dj) {
     auto at = [&](int x, int y) { return x >= 0 && y >= 0 && x < g.width && y < g.height ? f.value[g.index(x, y)] : NAN; };
@@ -88,7 +90,7 @@ double gradient_norm(const ChartField& f, int i, int j) {
     const int steps = ahead + back;
     return steps ? ((ahead ? hi : here) - (back ? lo : here)) / (steps * g.texel_mm) : 0.0;
   };
-  return std::hypot(along(1, 0), along(0, 1));
+  return Eigen::Vector2d(along(1, 0), along(0, 1));
 }
 
 namespace {

@@ -133,6 +133,14 @@ void write_png(const cv::Mat& image, const std::filesystem::path& path) {
   write_file_atomically(path, std::string(bytes.begin(), bytes.end()));
 }
 
+/// The largest value of a per-texel field over the texels with a signal (0 when none).
+double largest_where_seen(const Assessment& a, const ChartField& f) {
+  double worst = 0;
+  for (std::size_t k = 0; k < f.value.size(); ++k)
+    if (std::isfinite(a.signal.y.value[k]) && std::isfinite(f.value[k])) worst = std::max(worst, static_cast<double>(f.value[k]));
+  return worst;
+}
+
 /// The pose and how its uncertainty entered the σ: the largest skin position σ over the seen texels (mm, per
 /// axis across the line of sight) and the largest rotation σ; null and "unknown" without a pose covariance.
 json pose_json(const Assessment& a, const AssessmentScene& scene, const AssessmentContext& c) {
@@ -142,14 +150,28 @@ json pose_json(const Assessment& a, const AssessmentScene& scene, const Assessme
                                 "has no term for where on the skin each texel lies";
     return j;
   }
-  double worst = 0;
-  for (std::size_t k = 0; k < a.position_sigma_mm.value.size(); ++k)
-    if (std::isfinite(a.signal.y.value[k]) && std::isfinite(a.position_sigma_mm.value[k]))
-      worst = std::max(worst, static_cast<double>(a.position_sigma_mm.value[k]));
   const auto& C = *scene.pose_covariance;
-  j["uncertainty_mm"] = worst;
+  j["uncertainty_mm"] = largest_where_seen(a, a.position_sigma_mm);
   j["uncertainty_deg"] = std::sqrt(std::max({C(0, 0), C(1, 1), C(2, 2), 0.0})) * 180 / M_PI;
   j["position_uncertainty"] = "from the pose file's covariance: in the σ of every texel as |∇signal| × the skin position's σ";
+  return j;
+}
+
+/// The camera model's projection uncertainty and how it entered the σ: the largest σ_q (px) of the model,
+/// the distance it was evaluated at, and the largest skin position σ it gave over the seen texels (mm per
+/// axis); nulls and "unknown" when the model carries none.
+json intrinsics_json(const Assessment& a, const AssessmentScene& scene) {
+  json j = {{"largest_px", nullptr}, {"distance_mm", nullptr}, {"uncertainty_mm", nullptr}};
+  if (!scene.projection_uncertainty || a.intrinsics_sigma_mm.value.empty()) {
+    j["position_uncertainty"] = "unknown: the camera model carries no projection uncertainty (`clearfit calibrate` writes it), so the "
+                                "sigma has no term for the intrinsics (0 used)";
+    return j;
+  }
+  j["largest_px"] = scene.projection_uncertainty->largest();
+  j["distance_mm"] = scene.projection_uncertainty->distance_mm;
+  j["uncertainty_mm"] = largest_where_seen(a, a.intrinsics_sigma_mm);
+  j["position_uncertainty"] = "from the camera model's projection uncertainty through the inverse map: in the sigma of every texel as "
+                              "|grad signal| x the skin position's sigma, in quadrature with the pose's";
   return j;
 }
 
@@ -356,6 +378,7 @@ json assessment_report_json(const Assessment& a, const AssessmentScene& scene, c
       {"calibration",
        {{"camera", {{"rms_px", nullptr}, {"source", c.camera_source}}},
         {"pose", pose_json(a, scene, c)},
+        {"camera_intrinsics", intrinsics_json(a, scene)},
         {"pressure", pressure_calibration_json(c)}}},
       {"pressure", pressure_json(a, c)},
       {"thresholds_kpa", a.calibrated ? json(a.thresholds) : json::array()},

@@ -3,6 +3,7 @@
 // mrcal.project, round trips, and the per-pixel ray grid against
 // mrcal_unproject at every pixel.
 #include <clearfit/camera/camera_model.hpp>
+#include <clearfit/camera/projection_uncertainty.hpp>
 #include <clearfit/error.hpp>
 
 #include <gtest/gtest.h>
@@ -15,6 +16,7 @@
 #include <cstdlib>
 #include <filesystem>
 #include <fstream>
+#include <iterator>
 #include <numbers>
 #include <random>
 #include <ctime>
@@ -124,6 +126,57 @@ TEST_F(CameraFiles, WriteReadRoundTripIsExact) {
     EXPECT_LT((back.cam_from_part.translation - m.cam_from_part.translation).norm(), 1e-13);
     EXPECT_EQ(back.intrinsics_hash(), m.intrinsics_hash());
   }
+}
+
+// The projection uncertainty's keys (projection_uncertainty.hpp): written with the model, read back exactly,
+// skipped by mrcal's C reader (read_cameramodel) and by mrcal's Python reader; a model without them has none;
+// some of the keys without the others, or a wrong count, is refused naming the key.
+TEST_F(CameraFiles, ProjectionUncertaintyTravelsWithTheModel) {
+  const CameraModel m = opencv8();
+  const ProjectionUncertainty u{3, 2, 412.5, {0.11, 0.2, 0.35, 0.1, 0.05, 1.0 / 3}};
+  const auto path = dir_ / "u.cameramodel";
+  write_cameramodel(m, u, path);
+  const CameraModel back = read_cameramodel(path);
+  EXPECT_EQ(back.intrinsics, m.intrinsics);
+  const auto read = read_projection_uncertainty(path);
+  ASSERT_TRUE(read);
+  EXPECT_EQ(read->cells_x, 3);
+  EXPECT_EQ(read->cells_y, 2);
+  EXPECT_EQ(read->distance_mm, 412.5);
+  EXPECT_EQ(read->px, u.px);  // bit for bit
+  // At the cell centres ((c + 0.5)·W/n − 0.5) the values; halfway between two centres their mean; beyond the
+  // outer centres the nearest.
+  const double W = m.width, H = m.height;
+  auto centre = [&](double cx, double cy) { return Vec2((cx + 0.5) * W / 3 - 0.5, (cy + 0.5) * H / 2 - 0.5); };
+  for (int cy = 0; cy < 2; ++cy)
+    for (int cx = 0; cx < 3; ++cx) EXPECT_NEAR(read->at(centre(cx, cy), m.width, m.height), u.px[cy * 3 + cx], 1e-12);
+  EXPECT_NEAR(read->at(centre(0.5, 0), m.width, m.height), (0.11 + 0.2) / 2, 1e-12);
+  EXPECT_NEAR(read->at(centre(2, 0.5), m.width, m.height), (0.35 + 1.0 / 3) / 2, 1e-12);
+  EXPECT_NEAR(read->at(Vec2(-0.5, -0.5), m.width, m.height), 0.11, 1e-12);
+  EXPECT_DOUBLE_EQ(read->largest(), 1.0 / 3 > 0.35 ? 1.0 / 3 : 0.35);
+  write_cameramodel(m, dir_ / "plain.cameramodel");
+  EXPECT_FALSE(read_projection_uncertainty(dir_ / "plain.cameramodel"));
+  if (have_python_mrcal()) {
+    const auto j = python("import sys, json, mrcal\nm = mrcal.cameramodel(sys.argv[1])\nprint(json.dumps(list(m.intrinsics()[1])))\n",
+                          {path.string()});
+    EXPECT_EQ(j.get<std::vector<double>>(), m.intrinsics);
+  }
+  std::ifstream in(path);
+  const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  auto refused = [&](const std::string& from, const std::string& to, const std::string& key) {
+    std::string bad = text;
+    bad.replace(bad.find(from), from.size(), to);
+    const auto p = text_file("bad.cameramodel", bad);
+    try {
+      read_projection_uncertainty(p);
+      ADD_FAILURE() << "accepted " << to;
+    } catch (const InputError& e) {
+      EXPECT_NE(std::string(e.what()).find(key), std::string::npos) << e.what();
+    }
+  };
+  refused("'clearfit_uncertainty_distance_mm'", "'other_key'", "clearfit_uncertainty_distance_mm");
+  refused("[ 3, 2, ]", "[ 4, 2, ]", "clearfit_uncertainty_px");
+  refused("'clearfit_uncertainty_px': [ 0.11", "'clearfit_uncertainty_px': [ -0.11", "clearfit_uncertainty_px");
 }
 
 TEST_F(CameraFiles, OurReaderReadsMrcalPythonFileWithIdenticalValues) {

@@ -212,6 +212,92 @@ TEST_F(AssessCli, PoseCovarianceAddsItsTermWhereThePressureIsSteep) {
   EXPECT_LT(flat_max, 0.03);  // sqrt(1 + 0.2²) - 1 = 2 % at most, if clearfit's gradient is this one
 }
 
+// The camera's projection uncertainty end to end, against a finite-difference propagation: the captures'
+// camera model with a uniform σ_q of s px in its clearfit_uncertainty_* keys, and the same model with its
+// principal point moved by d px along x and then along y (no uncertainty). Moving cx by d makes every texel
+// read the skin that its pixel + d shows, so p_x − p = ∇p·A·(d, 0) (A: skin mm per pixel), and the exact
+// propagation of a δq of σ_q per image axis is σ_q·|Aᵀ∇p| = (s/d)·√((p_x − p)² + (p_y − p)²). The pressure is
+// unchanged; its σ gains that term in quadrature: on the hotspots' flanks, not on their flat tops.
+TEST_F(AssessCli, IntrinsicsUncertaintyAddsItsTermWhereThePressureIsSteep) {
+  const double s = 0.5, d = 0.5;  // px
+  const std::string model = read_text(captures() / "camera.cameramodel");
+  auto with_keys = [&](const std::string& keys) {
+    std::string m = model;
+    m.insert(m.rfind('}'), keys);
+    return m;
+  };
+  const std::string sigma = std::to_string(s);
+  write_text(work() / "camera_u.cameramodel",
+             with_keys("    'clearfit_uncertainty_cells': [ 2, 2, ],\n    'clearfit_uncertainty_distance_mm': 100,\n"
+                       "    'clearfit_uncertainty_px': [ " + sigma + ", " + sigma + ", " + sigma + ", " + sigma + ", ],\n"));
+  // The principal point moved: intrinsics fx, fy, cx, cy, ...
+  auto shifted = [&](int which) {
+    const auto open = model.find('[', model.find("'intrinsics'")), close = model.find(']', open);
+    std::string list = model.substr(open + 1, close - open - 1);
+    std::replace(list.begin(), list.end(), ',', ' ');
+    std::istringstream in(list);
+    std::vector<double> v;
+    for (double x; in >> x;) v.push_back(x);
+    v.at(2 + which) += d;
+    std::ostringstream out;
+    out.precision(17);
+    for (double x : v) out << x << ", ";
+    return model.substr(0, open + 1) + " " + out.str() + model.substr(close);
+  };
+  write_text(work() / "camera_x.cameramodel", shifted(0));
+  write_text(work() / "camera_y.cameramodel", shifted(1));
+  // The calibration is tied to the intrinsics it was made with; here the same one serves the moved cameras.
+  auto cal = nlohmann::json::parse(read_text(captures() / "calibration.json"));
+  cal["camera_intrinsics_hash"] = nullptr;
+  write_text(work() / "calibration_any_camera.json", cal.dump());
+  const std::string calibration_any = "calibration: {pressure: " + (work() / "calibration_any_camera.json").string() + ", person: wearer-1}\n";
+  std::map<std::string, npy::Float32Array> p, ps;
+  std::map<std::string, nlohmann::json> report;
+  for (const std::string run : {"plain", "u", "x", "y"}) {
+    scene(two_captures(), calibration_any,
+          run == "plain" ? (captures() / "camera.cameramodel").string() : (work() / ("camera_" + run + ".cameramodel")).string());
+    const RunResult r = assess({"--out", run});
+    ASSERT_EQ(r.exit_code, 0) << run << "\n" << r;
+    p[run] = npy::read_float32(work() / run / "pressure.npy");
+    ps[run] = npy::read_float32(work() / run / "pressure_sigma.npy");
+    report[run] = nlohmann::json::parse(read_text(work() / run / "report.json"));
+  }
+  const auto& intrinsics = report["u"]["calibration"]["camera_intrinsics"];
+  EXPECT_NEAR(intrinsics["largest_px"].get<double>(), s, 1e-12);
+  EXPECT_GT(intrinsics["uncertainty_mm"].get<double>(), 0);
+  EXPECT_TRUE(report["plain"]["calibration"]["camera_intrinsics"]["uncertainty_mm"].is_null());
+  const std::string warnings = report["plain"]["warnings"].dump();
+  EXPECT_NE(warnings.find("no projection uncertainty"), std::string::npos) << warnings;
+  EXPECT_EQ(report["u"]["warnings"].dump().find("no projection uncertainty"), std::string::npos);
+  ASSERT_EQ(p["u"].values.size(), p["plain"].values.size());
+  for (std::size_t k = 0; k < p["plain"].values.size(); ++k)
+    ASSERT_TRUE(p["plain"].values[k] == p["u"].values[k] || (std::isnan(p["plain"].values[k]) && std::isnan(p["u"].values[k]))) << k;
+  std::vector<double> steep_ratio, flat_growth;
+  for (std::size_t k = 0; k < p["plain"].values.size(); ++k) {
+    const double p0 = p["plain"].values[k], px = p["x"].values[k], py = p["y"].values[k];
+    const double without = ps["plain"].values[k], with = ps["u"].values[k];
+    if (!(std::isfinite(without) && std::isfinite(with) && std::isfinite(px) && std::isfinite(py) && std::isfinite(ps["x"].values[k]) &&
+          std::isfinite(ps["y"].values[k])))
+      continue;  // an estimate in every run (no status change between them)
+    EXPECT_GE(with, without * (1 - 1e-6)) << "texel " << k;
+    const double predicted = s / d * std::hypot(px - p0, py - p0);
+    if (predicted > without) steep_ratio.push_back(std::sqrt(std::max(0.0, with * with - without * without)) / predicted);
+    if (predicted < 0.2 * without) flat_growth.push_back(with / without - 1);
+  }
+  ASSERT_GT(steep_ratio.size(), 50u);
+  ASSERT_GE(flat_growth.size(), 5u);
+  auto median = [](std::vector<double> v) {
+    std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
+    return v[v.size() / 2];
+  };
+  const double steep = median(steep_ratio), flat = median(flat_growth);
+  std::printf("steep texels (finite-difference term > sigma): %zu, added sigma / finite-difference term median %.3f; flat texels "
+              "(< 0.2 sigma): %zu, sigma grew by median %.4f %%; largest skin position sigma %.4f mm\n",
+              steep_ratio.size(), steep, flat_growth.size(), 100 * flat, intrinsics["uncertainty_mm"].get<double>());
+  EXPECT_NEAR(steep, 1.0, 0.15);
+  EXPECT_LT(flat, 0.03);
+}
+
 TEST_F(AssessCli, WithoutCalibrationReportsTheSignal) {
   scene(two_captures());
   const RunResult r = assess();

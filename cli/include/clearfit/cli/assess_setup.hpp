@@ -46,7 +46,7 @@ struct Prepared {
   AssessmentScene view() const {
     return {&part->mesh, &part->contact, &*part->chart, &part->camera, part->cam_from_part, &map, &inverse,
             part->pose_covariance ? &*part->pose_covariance : nullptr, baseline_part, baseline_gap_mm, baseline_rays.get(),
-            inverse_options};
+            inverse_options, part->projection_uncertainty ? &*part->projection_uncertainty : nullptr};
   }
 };
 

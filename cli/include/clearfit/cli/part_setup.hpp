@@ -8,6 +8,7 @@
 
 #include <clearfit/camera/camera_model.hpp>
 #include <clearfit/camera/pose_file.hpp>
+#include <clearfit/camera/projection_uncertainty.hpp>
 #include <clearfit/geometry/normals.hpp>
 #include <clearfit/geometry/ray_index.hpp>
 #include <clearfit/refraction/map.hpp>
@@ -39,6 +40,7 @@ struct LoadedPart {
   std::string pose_source;    ///< where cam_from_part came from
   std::optional<PoseCovariance> pose_covariance;  ///< from the pose file, when it carries one
   std::string camera_source;  ///< the camera model's file
+  std::optional<ProjectionUncertainty> projection_uncertainty;  ///< from the camera model, when it carries one
   std::optional<Chart> chart;
   CornerNormals normals;
   std::unique_ptr<RayIndex> index;

@@ -6,6 +6,7 @@
 // module turns the result into files.
 #include <clearfit/camera/camera_model.hpp>
 #include <clearfit/camera/pose_file.hpp>
+#include <clearfit/camera/projection_uncertainty.hpp>
 #include <clearfit/fit/baseline_gap.hpp>
 #include <clearfit/fit/blanching.hpp>
 #include <clearfit/fit/capture.hpp>
@@ -107,6 +108,11 @@ struct Assessment {
   /// Per texel, 1-σ (mm, per axis across the line of sight) of where on the skin the texel lies, from the
   /// pose's covariance; empty when it is unknown. Its signal term |∇y|·σ is in signal_sigma.
   ChartField position_sigma_mm;
+  /// Per texel, 1-σ (mm, per chart axis) of where on the skin the texel lies from the camera model's
+  /// projection uncertainty (σ_q px at the texel's pixel through the inverse map's Jacobian A: σ_q·‖A‖_F/√2);
+  /// empty when the model carries none. Its signal term σ_q·|Aᵀ∇y| is in signal_sigma; the hotspots'
+  /// centres take it in quadrature with the pose's.
+  ChartField intrinsics_sigma_mm;
   /// 1-σ of the signal per texel: the noise (signal.sigma_y) and the position term in quadrature; inverted
   /// into pressure_sigma, and the σ of the hotspots without a calibration.
   ChartField signal_sigma;
@@ -141,6 +147,9 @@ struct AssessmentScene {
   std::optional<double> baseline_gap_mm;
   const BaselineRays* baseline_rays = nullptr;
   InverseMapOptions inverse_options;  ///< those `inverse` was made with: the baseline's inverse map shares its grid
+  /// The camera model's projection uncertainty (projection_uncertainty.hpp); nullptr: unknown (no term for it
+  /// in the σ, and a warning says so).
+  const ProjectionUncertainty* projection_uncertainty = nullptr;
 };
 
 /// Runs the assessment. Throws InputError on bad captures (see capture.hpp),

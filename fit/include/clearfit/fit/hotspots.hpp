@@ -97,6 +97,8 @@ std::vector<Hotspot> find_hotspots(const ChartField& field, const ChartField* si
 /// |∇v| of `field` at texel (i, j), per mm: central differences, one-sided beside undefined texels, 0
 /// when neither neighbour is defined.
 double gradient_norm(const ChartField& field, int i, int j);
+/// The gradient itself (per mm along the chart's u and v), by the same differences.
+Eigen::Vector2d gradient(const ChartField& field, int i, int j);
 
 /// Barycentric weights of the point of triangle abc closest to p (Ericson,
 /// Real-Time Collision Detection, 5.1.5).
