@@ -60,6 +60,63 @@
   for (const r of document.querySelectorAll('#hotspot-table tbody tr')) r.addEventListener('click', () => select(r.dataset.hotspot));
   status.select = select;
 
+  // Hover: the values of the seen vertex nearest to the surface point under the pointer. data.vertices holds
+  // the view's seen vertices as base64 little-endian float32 rows (x, y, z mm, kPa, kPa sigma, signal; NaN:
+  // none) and their mesh ids (uint32); the hit point comes in the model's frame, the mesh's mm times
+  // node_scale, as the hotspot markers' data-position.
+  const decode = (b64, Type) => {
+    const bin = atob(b64);
+    const bytes = new Uint8Array(bin.length);
+    for (let i = 0; i < bin.length; ++i) bytes[i] = bin.charCodeAt(i);
+    return new Type(bytes.buffer);
+  };
+  const vertices = data.vertices ? { ...data.vertices, rows: decode(data.vertices.rows, Float32Array), ids: decode(data.vertices.ids, Uint32Array) } : null;
+  const tip = document.createElement('div');
+  tip.className = 'vertex-tip';
+  tip.hidden = true;
+  viewer.parentElement.appendChild(tip);
+  const fmt = (v, digits) => (v === null || v === undefined || Number.isNaN(v) ? '\u2014' : v.toFixed(digits));
+  function vertexAt(clientX, clientY) {
+    if (!vertices || !status.loaded) return null;
+    const hit = viewer.positionAndNormalFromPoint(clientX, clientY);
+    if (!hit) return null;
+    const k = 1 / vertices.node_scale, p = [hit.position.x * k, hit.position.y * k, hit.position.z * k];
+    const q = vertices.rows;
+    let best = Infinity, index = -1;
+    for (let i = 0; i < vertices.count; ++i) {
+      const dx = q[6 * i] - p[0], dy = q[6 * i + 1] - p[1], dz = q[6 * i + 2] - p[2], d = dx * dx + dy * dy + dz * dz;
+      if (d < best) { best = d; index = i; }
+    }
+    // Farther than the reach of the seen surface's own vertices: a part of the mesh the camera does not see.
+    if (index < 0 || Math.sqrt(best) > vertices.reach_mm) return { unseen: true, point_mm: p };
+    const v = { index, id: vertices.ids[index], point_mm: p, distance_mm: Math.sqrt(best), signal: q[6 * index + 5] };
+    if (vertices.calibrated) { v.kpa = q[6 * index + 3]; v.kpa_sigma = q[6 * index + 4]; }
+    return v;
+  }
+  function describe(v) {
+    if (v.unseen) return 'not seen by the camera';
+    let s = 'vertex ' + v.id + ': ';
+    if ('kpa' in v) s += fmt(v.kpa, 2) + ' \u00b1 ' + fmt(v.kpa_sigma, 2) + ' kPa, ';
+    return s + 'signal ' + fmt(v.signal, 4);
+  }
+  let frame = 0;
+  viewer.addEventListener('pointermove', (event) => {
+    if (frame) return;
+    frame = requestAnimationFrame(() => {
+      frame = 0;
+      const v = vertexAt(event.clientX, event.clientY);
+      status.hovered = v;
+      tip.hidden = !v;
+      if (!v) return;
+      tip.textContent = describe(v);
+      const box = viewer.parentElement.getBoundingClientRect();
+      tip.style.left = (event.clientX - box.left + 14) + 'px';
+      tip.style.top = (event.clientY - box.top + 14) + 'px';
+    });
+  });
+  viewer.addEventListener('pointerleave', () => { tip.hidden = true; status.hovered = null; });
+  status.vertexAt = vertexAt;
+
   // Printing: a WebGL canvas does not print reliably, so print a snapshot of it.
   const snapshot = document.getElementById('viewer-print');
   const takeSnapshot = () => {

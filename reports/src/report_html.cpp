@@ -207,8 +207,10 @@ using View = detail::PageView;
 // with a _BLANCH attribute, the same mesh recoloured by the blanching signal.
 // A heatmap of more than max_view_triangles triangles (0: no limit) is
 // simplified first, for every view alike (report_view.hpp).
+json hover_vertices(const detail::HeatmapGlb& g, bool calibrated);
+
 std::vector<View> make_views(const detail::HeatmapGlb& full, const json& report, std::size_t max_view_triangles,
-                             std::vector<std::string>& notes) {
+                             std::vector<std::string>& notes, json& hover) {
   std::optional<detail::HeatmapGlb> simplified;
   if (const std::size_t n = full.triangles.size() / 3; max_view_triangles > 0 && n > max_view_triangles) {
     simplified = detail::simplify_heatmap_for_view(full, max_view_triangles);
@@ -221,6 +223,7 @@ std::vector<View> make_views(const detail::HeatmapGlb& full, const json& report,
                       " triangles: heatmap.glb's layout (sparse accessors or unshared indices) cannot be simplified");
   }
   const detail::HeatmapGlb& g = simplified ? *simplified : full;
+  hover = hover_vertices(g, at(at(report, "calibration"), "pressure").is_object());  // the vertices drawn
   std::vector<View> views;
   const std::string quantity = at(g.info, "quantity").is_string() ? g.info["quantity"].get<std::string>() : "pressure_kpa";
   const std::string colormap = at(g.info, "colormap").is_string() ? g.info["colormap"].get<std::string>() : "viridis";
@@ -288,6 +291,37 @@ std::vector<View> make_views(const detail::HeatmapGlb& full, const json& report,
 std::string level_area(const json& level) {
   const json& sigma = at(level, "area_sigma_mm2");
   return num(at(level, "area_mm2"), 1) + (is_number(sigma) && sigma.get<double>() > 0 ? " &plusmn; " + num(sigma, 1) : "");
+}
+
+// The seen vertices of a view for report.js's hover, as base64 of little-endian float32 rows
+// (x, y, z mm, kPa, kPa σ, signal; NaN where the glb has no such attribute or no value) and uint32 mesh
+// vertex ids; reach_mm, three times the median edge of the seen triangles: a surface point farther than
+// that from every seen vertex lies where the camera does not see.
+json hover_vertices(const detail::HeatmapGlb& g, bool calibrated) {
+  const double scale = is_number(at(g.info, "node_scale")) ? g.info["node_scale"].get<double>() : 0.001;
+  const std::vector<float> kpa = g.scalar("_PRESSURE_KPA"), sigma = g.scalar("_PRESSURE_SIGMA_KPA"), signal = g.scalar("_BLANCH");
+  auto value = [](const std::vector<float>& a, std::size_t v, bool wanted) { return wanted && !a.empty() ? a[v] : NAN; };
+  std::vector<float> rows;
+  std::vector<std::uint32_t> ids;
+  for (std::size_t v = 0; v < g.vertex_count(); ++v) {
+    if (g.seen[v] < 0.5f) continue;
+    ids.push_back(static_cast<std::uint32_t>(v));
+    rows.insert(rows.end(), {g.position_mm[3 * v], g.position_mm[3 * v + 1], g.position_mm[3 * v + 2], value(kpa, v, calibrated),
+                             value(sigma, v, calibrated), value(signal, v, true)});
+  }
+  std::vector<double> edges;
+  for (std::size_t t = 0; t + 2 < g.triangles.size(); t += 3)
+    for (int e = 0; e < 3; ++e) {
+      const std::uint32_t a = g.triangles[t + e], b = g.triangles[t + (e + 1) % 3];
+      if (g.seen[a] < 0.5f || g.seen[b] < 0.5f) continue;
+      const Eigen::Vector3f d = Eigen::Vector3f(&g.position_mm[3 * a]) - Eigen::Vector3f(&g.position_mm[3 * b]);
+      edges.push_back(d.norm());
+    }
+  if (ids.empty() || edges.empty()) return nullptr;
+  std::nth_element(edges.begin(), edges.begin() + static_cast<std::ptrdiff_t>(edges.size() / 2), edges.end());
+  auto bytes = [](const auto& v) { return std::string(reinterpret_cast<const char*>(v.data()), v.size() * sizeof(v[0])); };
+  return {{"node_scale", scale},   {"reach_mm", 3 * edges[edges.size() / 2]}, {"count", ids.size()}, {"calibrated", calibrated},
+          {"rows", base64(bytes(rows))}, {"ids", base64(bytes(ids))}};
 }
 
 // Hotspot markers of the 3D view: each centroid snapped to the nearest seen
@@ -703,9 +737,10 @@ HtmlReportResult write_report_html(const fs::path& folder, const HtmlReportOptio
   // The 3D views.
   std::optional<detail::HeatmapGlb> glb;
   std::vector<View> views;
+  json hover;  // the hover's vertex table (report.js)
   if (const json& name = at(outputs, "heatmap_glb"); name.is_string() && fs::is_regular_file(folder / name.get<std::string>())) {
     glb = detail::load_heatmap_glb(folder / name.get<std::string>());
-    views = make_views(*glb, report, options.max_view_triangles, result.notes);
+    views = make_views(*glb, report, options.max_view_triangles, result.notes, hover);
   } else {
     result.notes.push_back("no heatmap .glb in the output folder: the report has no 3D view");
   }
@@ -747,7 +782,7 @@ HtmlReportResult write_report_html(const fs::path& folder, const HtmlReportOptio
   body += "<section id=\"part\"><h2>Part and chart</h2>" + part_table(report) + "</section>";
   body += "<section id=\"provenance\"><h2>Provenance</h2>" + provenance(report) + "</section>";
 
-  const std::string html = detail::render_page(page_assets, title, body, views, models);
+  const std::string html = detail::render_page(page_assets, title, body, views, models, hover);
   result.html = folder / "report.html";
   write_file_atomically(result.html, html);
   return result;
@@ -798,7 +833,8 @@ std::pair<std::string, std::string> view_section(const std::vector<PageView>& vi
     html += "</div>";
   }
   for (const PageView& v : views) html += v.colorbar;
-  html += "<p class=\"hint\">Drag to turn, scroll to zoom; click a numbered marker for its hotspot's numbers.</p></div>";
+  html += "<p class=\"hint\">Drag to turn, scroll to zoom; point at the surface for a vertex's values; click a numbered marker for "
+          "its hotspot's numbers.</p></div>";
   std::string models;
   for (const PageView& v : views)
     models += "<script type=\"application/octet-stream\" class=\"clearfit-model\" data-view=\"" + v.key + "\">" +
@@ -807,8 +843,9 @@ std::pair<std::string, std::string> view_section(const std::vector<PageView>& vi
 }
 
 std::string render_page(const PageAssets& assets, const std::string& title, const std::string& body,
-                        const std::vector<PageView>& views, const std::string& models) {
+                        const std::vector<PageView>& views, const std::string& models, const json& vertices) {
   json data = {{"views", json::array()}};
+  if (!vertices.is_null()) data["vertices"] = vertices;
   for (const PageView& v : views) data["views"].push_back({{"key", v.key}, {"label", v.label}});
   return fill_template(assets.page,
                        {{"title", html_escape(title)}, {"style", assets.css}, {"body", body}, {"models", models},

@@ -63,9 +63,11 @@ PageAssets load_page_assets(const std::filesystem::path& assets);
 /// the embedded models (base64 <script> elements), for render_page.
 std::pair<std::string, std::string> view_section(const std::vector<PageView>& views, const std::string& markers,
                                                  const std::string& orbit);
-/// The whole page: the template filled with `title` (escaped here), `body` (HTML), the views and models.
+/// The whole page: the template filled with `title` (escaped here), `body` (HTML), the views and models;
+/// `vertices` (when not null) is the page data's per-vertex table for the hover (report.js).
 std::string render_page(const PageAssets& assets, const std::string& title, const std::string& body,
-                        const std::vector<PageView>& views, const std::string& models);
+                        const std::vector<PageView>& views, const std::string& models,
+                        const nlohmann::json& vertices = nullptr);
 /// A colour bar for a view: CSS gradient from the colormap over [lo, hi], round ticks, unit.
 std::string colour_bar(const std::string& view, const std::string& colormap, double lo, double hi,
                        const std::string& unit, const std::string& caption);

@@ -118,7 +118,11 @@ inline json make_assessment_folder(const fs::path& dir, const FixtureOptions& o 
     in.chart = &chart;
     in.values = o.calibrated ? pressure : signal;
     in.seen = seen;
-    in.scalars = {{"_PRESSURE_KPA", o.calibrated ? pressure : std::vector<float>(nv, NAN)}, {"_BLANCH", signal}};
+    std::vector<float> pressure_sigma(nv, NAN);  // a σ that varies over the part (as a real one does)
+    if (o.calibrated)
+      for (std::size_t v = 0; v < nv; ++v) pressure_sigma[v] = 0.05f * pressure[v] + 0.3f;
+    in.scalars = {{"_PRESSURE_KPA", o.calibrated ? pressure : std::vector<float>(nv, NAN)},
+                  {"_PRESSURE_SIGMA_KPA", pressure_sigma}, {"_BLANCH", signal}};
     in.texture = &texture;
     in.quantity = o.calibrated ? "pressure_kpa" : "signal";
     in.unit = o.calibrated ? "kPa" : "";

@@ -6,8 +6,10 @@
 #include <gtest/gtest.h>
 #include <tiny_gltf.h>
 
+#include <cstring>
 #include <regex>
 
+#include "../../reports/src/report_html_glb.hpp"
 #include "report_fixture.hpp"
 
 // Declared by tiny_gltf.h only in its implementation part; libtinygltf.so defines it.
@@ -122,6 +124,47 @@ TEST_F(ReportHtml, HotspotTableMatchesReportJson) {
   EXPECT_EQ(html.find("href=\"http"), std::string::npos);
   // No temporary file is left beside it.
   for (const auto& e : fs::directory_iterator(dir_)) EXPECT_EQ(e.path().filename().string().find(".tmp"), std::string::npos) << e.path();
+}
+
+// The hover's vertex table (report.js shows a vertex's kPa ± σ and signal from it): exactly the heatmap's
+// seen vertices, each with its position and its _PRESSURE_KPA, _PRESSURE_SIGMA_KPA and _BLANCH as the .glb
+// holds them (read back here with the .glb reader); without a calibration the kPa columns are NaN.
+TEST_F(ReportHtml, HoverTableHoldsEverySeenVertexWithItsValues) {
+  for (const bool calibrated : {true, false}) {
+    FixtureOptions o;
+    o.calibrated = calibrated;
+    const std::string html = generate(o);
+    const std::string open = "id=\"clearfit-data\">";
+    const std::size_t a = html.find(open) + open.size(), b = html.find("</script>", a);
+    const json vertices = json::parse(html.substr(a, b - a)).at("vertices");
+    const auto glb = reports::detail::load_heatmap_glb(dir_ / "heatmap.glb");
+    const std::vector<float> kpa = glb.scalar("_PRESSURE_KPA"), sigma = glb.scalar("_PRESSURE_SIGMA_KPA"), signal = glb.scalar("_BLANCH");
+    const std::string rows_bytes = tinygltf::base64_decode(vertices.at("rows").get<std::string>());
+    const std::string ids_bytes = tinygltf::base64_decode(vertices.at("ids").get<std::string>());
+    const std::size_t n = vertices.at("count").get<std::size_t>();
+    ASSERT_EQ(rows_bytes.size(), n * 6 * sizeof(float));
+    ASSERT_EQ(ids_bytes.size(), n * sizeof(std::uint32_t));
+    std::vector<float> rows(6 * n);
+    std::vector<std::uint32_t> ids(n);
+    std::memcpy(rows.data(), rows_bytes.data(), rows_bytes.size());
+    std::memcpy(ids.data(), ids_bytes.data(), ids_bytes.size());
+    std::size_t seen = 0;
+    for (float f : glb.seen) seen += f > 0.5f;
+    EXPECT_EQ(n, seen);
+    EXPECT_EQ(vertices.at("calibrated").get<bool>(), calibrated);
+    EXPECT_GT(vertices.at("reach_mm").get<double>(), 0);
+    auto same = [](float x, float y) { return x == y || (std::isnan(x) && std::isnan(y)); };
+    for (std::size_t i = 0; i < n; ++i) {
+      const std::uint32_t v = ids[i];
+      ASSERT_LT(v, glb.vertex_count());
+      ASSERT_GT(glb.seen[v], 0.5f) << "vertex " << v;
+      for (int c = 0; c < 3; ++c) ASSERT_EQ(rows[6 * i + c], glb.position_mm[3 * v + c]) << "vertex " << v;
+      ASSERT_TRUE(same(rows[6 * i + 3], calibrated ? kpa[v] : NAN)) << "vertex " << v;
+      ASSERT_TRUE(same(rows[6 * i + 4], calibrated ? sigma[v] : NAN)) << "vertex " << v;
+      ASSERT_TRUE(same(rows[6 * i + 5], signal[v])) << "vertex " << v;
+      if (calibrated && std::isfinite(kpa[v])) EXPECT_GT(rows[6 * i + 4], 0.f) << "vertex " << v;
+    }
+  }
 }
 
 TEST_F(ReportHtml, EscapesMaliciousText) {

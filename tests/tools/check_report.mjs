@@ -7,7 +7,8 @@
 //    viewer is not blank (luminance spread and share of non-background pixels),
 //    and the views differ from each other;
 //  - the hotspot table equals report.json (exact values in data-value, shown
-//    text rounded), and clicking a hotspot marker shows that hotspot's numbers.
+//    text rounded), and clicking a hotspot marker shows that hotspot's numbers;
+//  - pointing at the surface shows the nearest seen vertex's kPa ± σ and signal.
 // Usage: node check_report.mjs REPORT.html [--screenshot-dir DIR] [--timeout-ms 60000]
 // Prints one JSON line of measurements; exits 1 with a message per failed check.
 import { readFileSync, mkdirSync, writeFileSync } from 'node:fs';
@@ -150,6 +151,59 @@ try {
     const visible = await page.locator('.hotspot-panel').isVisible();
     if (!visible || !panel.includes(`Hotspot ${id}`)) fail(`clicking hotspot ${id} did not show its numbers (panel: "${panel}")`);
     if (report.calibration.pressure && !panel.includes(hotspots[0].peak_kpa.toFixed(2))) fail(`hotspot ${id} panel lacks its peak ${hotspots[0].peak_kpa.toFixed(2)}`);
+  }
+
+  // Hover: a real pointer move over the surface shows the numbers of the seen vertex nearest to the point
+  // under it. The point comes from model-viewer's own positionAndNormalFromPoint; the nearest vertex and its
+  // numbers are found here from the page's embedded table (decoded in node), not through report.js.
+  const embedded = await page.evaluate(() => JSON.parse(document.getElementById('clearfit-data').textContent).vertices || null);
+  if (views.length && !embedded) fail('the page embeds no vertex table for the hover');
+  if (views.length && embedded) {
+    const rows = new Float32Array(new Uint8Array(Buffer.from(embedded.rows, 'base64')).buffer);
+    const ids = new Uint32Array(new Uint8Array(Buffer.from(embedded.ids, 'base64')).buffer);
+    if (rows.length !== 6 * embedded.count || ids.length !== embedded.count) fail(`vertex table: ${rows.length} floats and ${ids.length} ids for ${embedded.count} vertices`);
+    const nearest = (p) => {
+      let best = Infinity, index = -1;
+      for (let i = 0; i < embedded.count; ++i) {
+        const d = (rows[6 * i] - p[0]) ** 2 + (rows[6 * i + 1] - p[1]) ** 2 + (rows[6 * i + 2] - p[2]) ** 2;
+        if (d < best) { best = d; index = i; }
+      }
+      return { index, distance: Math.sqrt(best) };
+    };
+    const box = await page.locator('#viewer').boundingBox();
+    // Of the points of a 11 x 11 grid over the view that lie on the seen surface, the one whose vertex shows
+    // the most (kPa, or the signal without a calibration): the tip then shows numbers, not zeros.
+    let target = null;
+    const shows = (i) => (embedded.calibrated ? rows[6 * i + 3] : rows[6 * i + 5]);
+    for (let gy = 1; gy < 12; ++gy)
+      for (let gx = 1; gx < 12; ++gx) {
+        const x = box.x + box.width * gx / 12, y = box.y + box.height * gy / 12;
+        const hit = await page.evaluate(([px, py]) => {
+          const h = document.getElementById('viewer').positionAndNormalFromPoint(px, py);
+          return h ? [h.position.x, h.position.y, h.position.z] : null;
+        }, [x, y]);
+        if (!hit) continue;
+        const p = hit.map((c) => c / embedded.node_scale);
+        const n = nearest(p);
+        // A point on the seen surface, not under a hotspot marker (the marker would take the pointer).
+        const onMarker = await page.evaluate(([px, py]) => Boolean(document.elementFromPoint(px, py)?.closest?.('.hotspot')), [x, y]);
+        if (n.distance <= embedded.reach_mm && !onMarker && (!target || shows(n.index) > shows(target.index))) target = { x, y, p, ...n };
+      }
+    if (!target) fail('no point of the 3D view lies on the seen surface');
+    else {
+      await page.mouse.move(target.x, target.y);
+      await page.waitForFunction(() => window.clearfitReport.hovered !== undefined, null, { timeout }).catch(() => {});
+      await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
+      const tip = page.locator('.vertex-tip');
+      const text = (await tip.isVisible()) ? await tip.textContent() : '';
+      const i = target.index, row = rows.subarray(6 * i, 6 * i + 6);
+      const shownValue = (v, d) => (Number.isNaN(v) ? '\u2014' : v.toFixed(d));
+      const expected = `vertex ${ids[i]}: ` + (embedded.calibrated ? `${shownValue(row[3], 2)} \u00b1 ${shownValue(row[4], 2)} kPa, ` : '') +
+                       `signal ${shownValue(row[5], 4)}`;
+      measured.hover = { at: [Math.round(target.x), Math.round(target.y)], vertex: ids[i], distance_mm: target.distance, shown: text };
+      if (text !== expected) fail(`hovering the surface shows "${text}", expected "${expected}"`);
+      if (embedded.calibrated && !(row[4] > 0)) fail(`the hovered vertex ${ids[i]} has no pressure sigma (${row[4]})`);
+    }
   }
 
   // Screen: the print snapshot stays hidden.
