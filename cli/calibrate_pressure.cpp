@@ -297,7 +297,7 @@ Run add_calibrate_pressure(CLI::App& app) {
     print_summary(r, fo.loss);
     if (field == "hertz")
       std::printf("pressure field: hertz (a sphere: Hertz's pressure over each force's contact radius, blurred; the presses' radial "
-                  "profiles); E* %s +- %s kPa (%s)\n", cell(r.e_star_kpa, 4).c_str(), cell(r.e_star_se_kpa, 3).c_str(),
+                  "profiles); E* %s +- %s kPa (%s)\n", significant_digits(r.e_star_kpa, 4, "-").c_str(), significant_digits(r.e_star_se_kpa, 3, "-").c_str(),
                   ff.e_star_kpa == 0 ? "fitted" : "given");
     else
       std::printf("pressure field: %s%s\n", field.c_str(), field == "punch" ? " (Sneddon's flat punch, blurred; the presses' radial profiles)" : " (F / pi a^2)");

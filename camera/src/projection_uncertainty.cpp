@@ -2,6 +2,7 @@
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/camera/projection_uncertainty.hpp>
 #include <clearfit/error.hpp>
+#include <clearfit/format.hpp>
 
 #include <algorithm>
 #include <charconv>
@@ -54,12 +55,6 @@ std::vector<double> numbers(const std::string& file, const std::string& text, st
     out.push_back(v);
   }
   return out;
-}
-
-std::string shortest(double v) {
-  char buf[64];
-  const auto [p, ec] = std::to_chars(buf, buf + sizeof buf, v);
-  return std::string(buf, p);
 }
 
 }  // namespace
@@ -117,9 +112,9 @@ void write_cameramodel(const CameraModel& model, const ProjectionUncertainty& u,
   std::string keys = "\n    # clearfit: projection uncertainty (mrcal's method), 1-sigma px in the worst direction at the centres\n"
                      "    # of a grid of cells over the imager, row-major, for points at the distance given\n";
   keys += "    '" + std::string(kCells) + "': [ " + std::to_string(u.cells_x) + ", " + std::to_string(u.cells_y) + ", ],\n";
-  keys += "    '" + std::string(kDistance) + "': " + shortest(u.distance_mm) + ",\n";
+  keys += "    '" + std::string(kDistance) + "': " + significant_digits(u.distance_mm, 17) + ",\n";
   keys += "    '" + std::string(kPixels) + "': [ ";
-  for (double v : u.px) keys += shortest(v) + ", ";
+  for (double v : u.px) keys += significant_digits(v, 17) + ", ";
   keys += "],\n";
   text.insert(text.rfind('}'), keys);
   write_file_atomically(path, text);

@@ -2,7 +2,7 @@
 // pressure field (pressure_field_fit.hpp).
 #include <clearfit/error.hpp>
 #include <clearfit/fit/contact_mechanics.hpp>
-#include <clearfit/fit/format.hpp>
+#include <clearfit/format.hpp>
 #include <clearfit/fit/pressure_field_fit.hpp>
 
 #include <Eigen/Dense>

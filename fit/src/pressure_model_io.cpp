@@ -153,7 +153,7 @@ std::vector<CalibrationPress> read_presses_csv(const std::filesystem::path& path
     c.indenter_diameter_mm = diameter.value_or(kNaN);
     if (const auto sphere = number("sphere_radius_mm")) {
       if (!(*sphere > 0))
-        throw InputError(file, where + ", column 'sphere_radius_mm'", "must be > 0 mm, found " + num(*sphere),
+        throw InputError(file, where + ", column 'sphere_radius_mm'", "must be > 0 mm, found " + significant_digits(*sphere, 6),
                          "leave it empty for a flat indenter");
       c.sphere_radius_mm = *sphere;
     }
