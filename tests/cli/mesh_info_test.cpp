@@ -48,7 +48,6 @@ TEST_F(MeshInfo, SampleText) {
   ASSERT_TRUE(std::regex_search(r.out, m, std::regex(R"(thickness ([0-9.]+) \.\. ([0-9.]+) mm)"))) << r;
   EXPECT_NEAR(std::stod(m[1]), wall(), 1e-3);
   EXPECT_NEAR(std::stod(m[2]), wall(), 1e-3);
-  EXPECT_LT(r.seconds, 2.0) << r;
 }
 
 TEST_F(MeshInfo, SampleJsonMatchesClosedForms) {
