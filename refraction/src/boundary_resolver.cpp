@@ -6,7 +6,7 @@
 // traced on both sides, pixel-exact, and the pending pixels left are invalid
 // for the same reason as all their neighbours, or valid behind the traced
 // boundary (filled from a least-squares quadratic where it fits).
-#include "quadratic_fit.hpp"
+#include <clearfit/refraction/quadratic_fit.hpp>
 #include "quadtree.hpp"
 
 #include <tbb/parallel_for.h>

@@ -1,12 +1,12 @@
 // The boundary resolver's least-squares quadratic: exact on quadratics,
 // refuses point sets that leave a term free.
-#include "../../refraction/src/quadratic_fit.hpp"
+#include <clearfit/refraction/quadratic_fit.hpp>
 
 #include <gtest/gtest.h>
 
 #include <cmath>
 
-using clearfit::refraction_detail::QuadraticFit;
+using clearfit::QuadraticFit;
 
 namespace {
 // A skin-point-like field: large offset, small curvature (mm).

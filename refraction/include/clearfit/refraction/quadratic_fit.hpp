@@ -2,12 +2,12 @@
 // Least-squares quadratic in pixel coordinates, 1 + u + v + u² + uv + v²
 // with u = (x - cx)·scale, v = (y - cy)·scale, for K values at once; solved
 // from the 6x6 normal equations, values taken relative to the first point's.
-// Used by the refraction map's boundary resolver to fill the valid pixels
-// behind a traced boundary.
+// Used by the refraction map's boundary resolver (refraction/src/boundary_resolver.cpp)
+// to fill the valid pixels behind a traced boundary.
 #include <Eigen/Cholesky>
 #include <Eigen/Core>
 
-namespace clearfit::refraction_detail {
+namespace clearfit {
 
 template <int K>
 class QuadraticFit {
@@ -54,4 +54,4 @@ class QuadraticFit {
   Eigen::Matrix<double, 6, K> atb_ = Eigen::Matrix<double, 6, K>::Zero(), coef_ = Eigen::Matrix<double, 6, K>::Zero();
 };
 
-}  // namespace clearfit::refraction_detail
+}  // namespace clearfit
