@@ -6,6 +6,8 @@
 #include <clearfit/camera/projection_uncertainty.hpp>
 #include <clearfit/error.hpp>
 
+#include "../support/outside_tools.hpp"
+
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 #include <tbb/global_control.h>
@@ -66,11 +68,6 @@ CameraModel splined() {
 }
 
 double angle_between(const Vec3& a, const Vec3& b) { return std::atan2(a.cross(b).norm(), a.dot(b)); }
-
-bool have_python_mrcal() {
-  static const bool ok = std::system("/usr/bin/python3 -c 'import mrcal' >/dev/null 2>&1") == 0;
-  return ok;
-}
 
 class CameraFiles : public ::testing::Test {
  protected:
@@ -156,7 +153,7 @@ TEST_F(CameraFiles, ProjectionUncertaintyTravelsWithTheModel) {
   EXPECT_DOUBLE_EQ(read->largest(), 1.0 / 3 > 0.35 ? 1.0 / 3 : 0.35);
   write_cameramodel(m, dir_ / "plain.cameramodel");
   EXPECT_FALSE(read_projection_uncertainty(dir_ / "plain.cameramodel"));
-  if (have_python_mrcal()) {
+  if (test::python_ready("mrcal", "python3-mrcal")) {
     const auto j = python("import sys, json, mrcal\nm = mrcal.cameramodel(sys.argv[1])\nprint(json.dumps(list(m.intrinsics()[1])))\n",
                           {path.string()});
     EXPECT_EQ(j.get<std::vector<double>>(), m.intrinsics);
@@ -180,7 +177,7 @@ TEST_F(CameraFiles, ProjectionUncertaintyTravelsWithTheModel) {
 }
 
 TEST_F(CameraFiles, OurReaderReadsMrcalPythonFileWithIdenticalValues) {
-  if (!have_python_mrcal()) GTEST_SKIP() << "/usr/bin/python3 cannot import mrcal";
+  CLEARFIT_REQUIRE_PYTHON("mrcal", "python3-mrcal");
   const CameraModel m = opencv8();
   const auto path = dir_ / "python.cameramodel";
   const auto rt = m.cam_from_part.to_rt();
@@ -283,7 +280,7 @@ TEST(CameraModel, IntrinsicsHashSeesIntrinsicsAndSizeNotPose) {
 // Python reads our files with identical values, and its project/unproject
 // agree with ours.
 TEST_F(CameraFiles, MatchesMrcalPython) {
-  if (!have_python_mrcal()) GTEST_SKIP() << "/usr/bin/python3 cannot import mrcal";
+  CLEARFIT_REQUIRE_PYTHON("mrcal", "python3-mrcal");
   std::printf("seed %u\n", kSeed);
   const std::vector<CameraModel> models = {opencv8(), pinhole(), splined()};
   std::vector<std::vector<Vec3>> points;

@@ -3,6 +3,8 @@
 #include <clearfit/camera/pose_file.hpp>
 #include <clearfit/error.hpp>
 
+#include "../support/outside_tools.hpp"
+
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -103,10 +105,8 @@ TEST(Rigid3, ComposeAndInverseIdentities) {
   EXPECT_LT((a.apply_direction(x) - a.rotation * x).norm(), 0.0 + 1e-15);
 }
 
-bool have_python_mrcal() { return std::system("/usr/bin/python3 -c 'import mrcal' >/dev/null 2>&1") == 0; }
-
 TEST_F(TempDir, ComposeAndInvertMatchMrcalPython) {
-  if (!have_python_mrcal()) GTEST_SKIP() << "/usr/bin/python3 cannot import mrcal";
+  CLEARFIT_REQUIRE_PYTHON("mrcal", "python3-mrcal");
   const std::array<double, 6> a{0.3, -0.2, 0.9, 10, -5, 120}, b{-1.1, 0.4, 2.5, -3, 7, 0.5};
   const auto script = file("ref.py",
                            "import sys, json, numpy as np, mrcal\n"

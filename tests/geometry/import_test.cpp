@@ -1,11 +1,10 @@
 // Mesh import/export: round trips through every format, files written by an
-// independent route (hand-written text, hand-packed binary STL, tinygltf, a 3MF
-// zipped by Python), units, and every bad-input case naming the file.
+// independent route (hand-written text, hand-packed binary STL, tinygltf, 3MF
+// packed by hand), units, and every bad-input case naming the file.
 #include <clearfit/error.hpp>
 #include <clearfit/geometry/import.hpp>
 #include <clearfit/geometry/shapes.hpp>
 
-#include "../../geometry/src/import_internal.hpp"
 #include "../support/zip_package.hpp"
 
 #include <gmock/gmock.h>
@@ -292,12 +291,20 @@ TEST_F(Import, MetreCubeBecomesThousandMillimetres) {
   EXPECT_NEAR(bounding_box(inch).second.x() - bounding_box(inch).first.x(), 25.4, 1e-9);
 }
 
+// A 3MF in centimetres whose build item moves the part by (1, 2, 3) cm, written by hand (tests/support/zip_package.hpp).
 TEST_F(Import, ThreeMfCarriesItsUnitAndTransform) {
   const Mesh t = tetra();
-  Eigen::Matrix<double, 3, 4> shift = Eigen::Matrix<double, 3, 4>::Zero();
-  shift.leftCols<3>().setIdentity();
-  shift.col(3) = Vec3(1, 2, 3);  // in the file's unit (cm)
-  detail::write_3mf(t, file("cm.3mf"), LengthUnit::centimetre, &shift);
+  std::string vertices, triangles;
+  for (const Vec3& v : t.vertices)  // millimetres written in centimetres
+    vertices += "<vertex x=\"" + std::to_string(v.x() / 10) + "\" y=\"" + std::to_string(v.y() / 10) + "\" z=\"" + std::to_string(v.z() / 10) + "\"/>";
+  for (const auto& f : t.faces)
+    triangles += "<triangle v1=\"" + std::to_string(f[0]) + "\" v2=\"" + std::to_string(f[1]) + "\" v3=\"" + std::to_string(f[2]) + "\"/>";
+  bytes("cm.3mf", test::package_3mf(R"(<?xml version="1.0" encoding="UTF-8"?>
+<model unit="centimeter" xml:lang="en-US" xmlns="http://schemas.microsoft.com/3dmanufacturing/core/2015/02">
+ <resources><object id="1" name="tetra" type="model"><mesh><vertices>)" + vertices + "</vertices><triangles>" + triangles +
+                                    R"(</triangles></mesh></object></resources>
+ <build><item objectid="1" transform="1 0 0 0 1 0 0 0 1 1 2 3"/></build>
+</model>)"));
   const Mesh m = load_mesh(file("cm.3mf"));
   EXPECT_EQ(m.source_units, "cm");
   ASSERT_EQ(m.num_faces(), t.num_faces());
@@ -310,10 +317,9 @@ TEST_F(Import, ThreeMfCarriesItsUnitAndTransform) {
   EXPECT_THAT(::testing::PrintToString(mm.import_notes), HasSubstr("states its unit as cm"));
 }
 
-// A 3MF zipped by Python from hand-written XML: build-item transform (3MF row-vector
-// convention, translation last) and a components object.
+// A 3MF packed by hand (tests/support/zip_package.hpp) from hand-written XML: build-item transform (3MF
+// row-vector convention, translation last) and a components object.
 TEST_F(Import, ThreeMfWrittenByHand) {
-  if (!fs::exists("/usr/bin/python3")) GTEST_SKIP() << "needs /usr/bin/python3 to zip the 3MF";
   const std::string model = R"(<?xml version="1.0" encoding="UTF-8"?>
 <model unit="inch" xml:lang="en-US" xmlns="http://schemas.microsoft.com/3dmanufacturing/core/2015/02">
  <resources>
@@ -325,18 +331,7 @@ TEST_F(Import, ThreeMfWrittenByHand) {
  </resources>
  <build><item objectid="2" transform="1 0 0 0 1 0 0 0 1 10 0 0"/></build>
 </model>)";
-  const std::string rels = R"(<?xml version="1.0" encoding="UTF-8"?>
-<Relationships xmlns="http://schemas.openxmlformats.org/package/2006/relationships"><Relationship Target="/3D/3dmodel.model" Id="rel0" Type="http://schemas.microsoft.com/3dmanufacturing/2013/01/3dmodel"/></Relationships>)";
-  const std::string types = R"(<?xml version="1.0" encoding="UTF-8"?>
-<Types xmlns="http://schemas.openxmlformats.org/package/2006/content-types"><Default Extension="rels" ContentType="application/vnd.openxmlformats-package.relationships+xml"/><Default Extension="model" ContentType="application/vnd.ms-package.3dmanufacturing-3dmodel+xml"/></Types>)";
-  text("3dmodel.model", model);
-  text("rels", rels);
-  text("types", types);
-  const std::string cmd = "cd '" + dir_.string() +
-                          "' && /usr/bin/python3 -c \"import zipfile; z=zipfile.ZipFile('hand.3mf','w'); "
-                          "z.write('3dmodel.model','3D/3dmodel.model'); z.write('rels','_rels/.rels'); "
-                          "z.write('types','[Content_Types].xml'); z.close()\"";
-  ASSERT_EQ(std::system(cmd.c_str()), 0);
+  bytes("hand.3mf", test::package_3mf(model));
   const Mesh m = load_mesh(file("hand.3mf"));
   EXPECT_EQ(m.source_units, "in");
   ASSERT_EQ(m.num_faces(), 4);
@@ -622,18 +617,8 @@ TEST_F(Import, FuzzRegressionInputsAreReadOrRefused) {
 TEST_F(Import, ThreeMfWithoutMeshAndBroken3mf) {
   const auto junk = text("junk.3mf", "this is not a zip package");
   expect_input_error([&] { load_mesh(junk); }, junk, "lib3mf could not read it");
-  if (!fs::exists("/usr/bin/python3")) GTEST_SKIP() << "needs /usr/bin/python3 to zip the 3MF";
-  text("3dmodel.model", R"(<?xml version="1.0" encoding="UTF-8"?>
-<model unit="millimeter" xml:lang="en-US" xmlns="http://schemas.microsoft.com/3dmanufacturing/core/2015/02"><resources/><build/></model>)");
-  text("rels", R"(<?xml version="1.0" encoding="UTF-8"?>
-<Relationships xmlns="http://schemas.openxmlformats.org/package/2006/relationships"><Relationship Target="/3D/3dmodel.model" Id="rel0" Type="http://schemas.microsoft.com/3dmanufacturing/2013/01/3dmodel"/></Relationships>)");
-  text("types", R"(<?xml version="1.0" encoding="UTF-8"?>
-<Types xmlns="http://schemas.openxmlformats.org/package/2006/content-types"><Default Extension="rels" ContentType="application/vnd.openxmlformats-package.relationships+xml"/><Default Extension="model" ContentType="application/vnd.ms-package.3dmanufacturing-3dmodel+xml"/></Types>)");
-  const std::string cmd = "cd '" + dir_.string() +
-                          "' && /usr/bin/python3 -c \"import zipfile; z=zipfile.ZipFile('empty.3mf','w'); "
-                          "z.write('3dmodel.model','3D/3dmodel.model'); z.write('rels','_rels/.rels'); "
-                          "z.write('types','[Content_Types].xml'); z.close()\"";
-  ASSERT_EQ(std::system(cmd.c_str()), 0);
+  bytes("empty.3mf", test::package_3mf(R"(<?xml version="1.0" encoding="UTF-8"?>
+<model unit="millimeter" xml:lang="en-US" xmlns="http://schemas.microsoft.com/3dmanufacturing/core/2015/02"><resources/><build/></model>)"));
   expect_input_error([&] { load_mesh(file("empty.3mf")); }, file("empty.3mf"), "no mesh object");
 }
 

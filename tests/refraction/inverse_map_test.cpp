@@ -9,6 +9,8 @@
 #include <clearfit/refraction/inverse_map.hpp>
 #include <opencv2/imgproc.hpp>
 
+#include "../support/outside_tools.hpp"
+
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -383,8 +385,7 @@ TEST(InverseMap, NpyExportReadsBackWithNumPy) {
   ASSERT_EQ(inv.width, 9);
   ASSERT_FALSE(inv.valid[inv.index(0, 2)]);
   ASSERT_TRUE(inv.valid[inv.index(5, 3)]);
-  if (std::system("/usr/bin/python3 -c 'import numpy' 2>/dev/null") != 0)
-    GTEST_SKIP() << "no numpy for /usr/bin/python3";
+  CLEARFIT_REQUIRE_PYTHON("numpy", "python3-numpy");
   const std::string cmd = "/usr/bin/python3 -c \"import numpy as np; a = np.load('" + path.string() +
                           "'); print(a.shape, a.dtype, bool(np.isnan(a[2, 0]).all()), repr(float(a[3, 5, "
                           "0])), repr(float(a[3, 5, 1])))\"";

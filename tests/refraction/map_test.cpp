@@ -6,6 +6,7 @@
 #include <clearfit/refraction/map.hpp>
 #include <gtest/gtest.h>
 
+#include "../support/outside_tools.hpp"
 #include "../support/trace_part.hpp"
 
 #include <algorithm>
@@ -218,7 +219,7 @@ TEST(RefractionMap, NpyExportReadsBackWithNumPy) {
   RefractionMap map = compute_refraction_map(part.scene(), rig.camera, rig.cam_from_part);
   const auto path = std::filesystem::temp_directory_path() / "clearfit_map_test.npy";
   write_skin_points_npy(map, path);
-  if (std::system("/usr/bin/python3 -c 'import numpy' 2>/dev/null") != 0) GTEST_SKIP() << "no numpy for /usr/bin/python3";
+  CLEARFIT_REQUIRE_PYTHON("numpy", "python3-numpy");
   const std::string cmd = "/usr/bin/python3 -c \"import numpy as np; a = np.load('" + path.string() +
                           "'); print(a.shape, a.dtype, repr(float(a[5, 7, 0])), repr(float(a[5, 7, 2])))\"";
   FILE* pipe = popen(cmd.c_str(), "r");

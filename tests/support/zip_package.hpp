@@ -57,8 +57,8 @@ inline std::string zip_package(const std::vector<ZipEntry>& entries) {
   return out;
 }
 
-/// The entries of a 3MF package of a tetrahedron 10 mm high: content types, relationships, the model (last).
-inline std::vector<ZipEntry> tetra_3mf_entries() {
+/// The entries of a 3MF package holding `model_xml` as its model: content types, relationships, the model (last).
+inline std::vector<ZipEntry> package_3mf_entries(std::string model_xml) {
   auto entry = [](std::string name, std::string data) { return ZipEntry{std::move(name), std::move(data), false, std::nullopt}; };
   return {
       entry("[Content_Types].xml",
@@ -68,14 +68,22 @@ inline std::vector<ZipEntry> tetra_3mf_entries() {
       entry("_rels/.rels",
        "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<Relationships xmlns=\"http://schemas.openxmlformats.org/package/2006/relationships\">"
        "<Relationship Target=\"/3D/3dmodel.model\" Id=\"rel0\" Type=\"http://schemas.microsoft.com/3dmanufacturing/2013/01/3dmodel\"/></Relationships>"),
-      entry("3D/3dmodel.model",
+      entry("3D/3dmodel.model", std::move(model_xml)),
+  };
+}
+
+/// A 3MF package (stored entries, honest sizes) holding `model_xml` as its model.
+inline std::string package_3mf(std::string model_xml) { return zip_package(package_3mf_entries(std::move(model_xml))); }
+
+/// The entries of a 3MF package of a tetrahedron 10 mm high: content types, relationships, the model (last).
+inline std::vector<ZipEntry> tetra_3mf_entries() {
+  return package_3mf_entries(
        "<?xml version=\"1.0\" encoding=\"UTF-8\"?>\n<model unit=\"millimeter\" xml:lang=\"en-US\" "
        "xmlns=\"http://schemas.microsoft.com/3dmanufacturing/core/2015/02\"><resources><object id=\"1\" type=\"model\" name=\"contact\">"
        "<mesh><vertices><vertex x=\"0\" y=\"0\" z=\"0\"/><vertex x=\"10\" y=\"0\" z=\"0\"/><vertex x=\"0\" y=\"10\" z=\"0\"/>"
        "<vertex x=\"0\" y=\"0\" z=\"10\"/></vertices><triangles><triangle v1=\"0\" v2=\"2\" v3=\"1\"/><triangle v1=\"0\" v2=\"1\" v3=\"3\"/>"
        "<triangle v1=\"0\" v2=\"3\" v3=\"2\"/><triangle v1=\"1\" v2=\"2\" v3=\"3\"/></triangles></mesh></object></resources>"
-       "<build><item objectid=\"1\"/></build></model>"),
-  };
+       "<build><item objectid=\"1\"/></build></model>");
 }
 
 /// The tetrahedron's 3MF with its model entry (the last) deflated or not and claiming `declared` bytes.
