@@ -7,7 +7,7 @@
 //   ray_index_bench --benchmark_filter=Trace1Thread
 #include <clearfit/geometry/ray_index.hpp>
 
-#include "../geometry/src/ray_index_internal.hpp"
+#include <clearfit/geometry/ray_index_embree.hpp>
 
 #include <benchmark/benchmark.h>
 #include <tbb/global_control.h>
@@ -57,14 +57,14 @@ constexpr const char* kVariant[] = {"embree_single", "embree_packet16", "embree_
                                     "embree_medium_build", "cgal"};
 std::unique_ptr<RayIndex> build(int grid, int variant) {
   const Mesh& m = height_field(grid);
-  if (variant == 5) return ray_detail::make_cgal_aabb(m, normals_of(grid));
-  ray_detail::EmbreeOptions o;
-  o.mode = variant == 0   ? ray_detail::EmbreeOptions::Mode::single
-           : variant == 1 ? ray_detail::EmbreeOptions::Mode::packet16
-                          : ray_detail::EmbreeOptions::Mode::stream;
+  if (variant == 5) return make_ray_index(m, RayBackend::cgal_aabb, &normals_of(grid));
+  EmbreeOptions o;
+  o.mode = variant == 0   ? EmbreeOptions::Mode::single
+           : variant == 1 ? EmbreeOptions::Mode::packet16
+                          : EmbreeOptions::Mode::stream;
   o.vertex_guards = variant != 3;
   o.high_quality_build = variant != 4;
-  return ray_detail::make_embree(m, normals_of(grid), o);
+  return make_embree_ray_index(m, o, &normals_of(grid));
 }
 const RayIndex& cached(int grid, int variant) {
   static std::map<std::pair<int, int>, std::unique_ptr<RayIndex>> cache;

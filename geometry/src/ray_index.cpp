@@ -30,13 +30,25 @@ RayHit RayIndex::refine_hit(const Ray& ray, int face) const {
   return ray_detail::refine(*this, ray, face, std::nullopt);
 }
 
-std::unique_ptr<RayIndex> make_ray_index(const Mesh& mesh, RayBackend backend,
-                                         const CornerNormals* normals) {
+namespace {
+// The corner normals a new index keeps: `normals` (checked against the mesh) or the mesh's own.
+CornerNormals normals_for_index(const Mesh& mesh, const CornerNormals* normals) {
   mesh.check_consistent();
   if (normals && normals->corner.size() != mesh.faces.size())
     throw std::invalid_argument("make_ray_index: normals has " + std::to_string(normals->corner.size()) +
                                 " faces, the mesh " + std::to_string(mesh.faces.size()));
-  CornerNormals n = normals ? *normals : compute_corner_normals(mesh);
+  return normals ? *normals : compute_corner_normals(mesh);
+}
+}  // namespace
+
+std::unique_ptr<RayIndex> make_embree_ray_index(const Mesh& mesh, const EmbreeOptions& options,
+                                                const CornerNormals* normals) {
+  return ray_detail::make_embree(mesh, normals_for_index(mesh, normals), options);
+}
+
+std::unique_ptr<RayIndex> make_ray_index(const Mesh& mesh, RayBackend backend,
+                                         const CornerNormals* normals) {
+  CornerNormals n = normals_for_index(mesh, normals);
   switch (backend) {
     case RayBackend::embree: return ray_detail::make_embree(mesh, std::move(n));
     case RayBackend::cgal_aabb: return ray_detail::make_cgal_aabb(mesh, std::move(n));

@@ -2,6 +2,7 @@
 // Private to the ray index: the backends' factories and the double-precision
 // ray/triangle test they share. Not installed, not included by other modules.
 #include <clearfit/geometry/ray_index.hpp>
+#include <clearfit/geometry/ray_index_embree.hpp>
 
 #include <array>
 #include <optional>
@@ -61,14 +62,6 @@ void check_rays(std::span<const Ray> rays, std::span<RayHit> hits);
 std::unique_ptr<RayIndex> make_brute_force(const Mesh& mesh, CornerNormals normals);
 std::unique_ptr<RayIndex> make_cgal_aabb(const Mesh& mesh, CornerNormals normals);
 
-/// How the Embree backend hands rays to Embree (bench/ray_index_bench.cpp measures
-/// them: on 200k triangles, camera rays, one thread, stream 4.1, packet16 3.7,
-/// single 3.1 Mrays/s; random rays 0.70 / 0.70 / 0.91, all ±40 % on the shared machine).
-struct EmbreeOptions {
-  enum class Mode { single, packet16, stream } mode = Mode::stream;
-  bool high_quality_build = true;   ///< RTC_BUILD_QUALITY_HIGH, else MEDIUM
-  bool vertex_guards = true;        ///< guard spheres at the vertices (see ray_index_embree.cpp)
-};
 std::unique_ptr<RayIndex> make_embree(const Mesh& mesh, CornerNormals normals,
                                       const EmbreeOptions& options = {});
 

@@ -11,6 +11,8 @@
 #include <clearfit/reports/colormap.hpp>
 #include <clearfit/reports/heatmap_glb.hpp>
 
+#include "../support/glb_read.hpp"
+
 #include <gtest/gtest.h>
 #include <tiny_gltf.h>
 #include <unistd.h>
@@ -119,30 +121,11 @@ HeatmapInput input_for(const Case& c) {
   return in;
 }
 
-template <typename T>
-std::vector<T> read_accessor(const tinygltf::Model& m, int accessor, int components) {
-  const tinygltf::Accessor& acc = m.accessors.at(accessor);
-  const tinygltf::BufferView& view = m.bufferViews.at(acc.bufferView);
-  const unsigned char* p = m.buffers.at(view.buffer).data.data() + view.byteOffset + acc.byteOffset;
-  std::vector<T> out(acc.count * components);
-  std::memcpy(out.data(), p, out.size() * sizeof(T));
-  return out;
-}
-
-tinygltf::Model load(const fs::path& path) {
-  tinygltf::Model model;
-  tinygltf::TinyGLTF loader;
-  std::string err, warn;
-  EXPECT_TRUE(loader.LoadBinaryFromFile(&model, &err, &warn, path.string())) << err;
-  EXPECT_EQ(err, "");
-  return model;
-}
-
 // Validates, reads back and checks the file written for `in`.
 void check_heatmap(const HeatmapInput& in, const fs::path& path, std::size_t hotspots) {
   std::string log;
   EXPECT_EQ(run_validator(path, log), 0) << log;
-  const tinygltf::Model m = load(path);
+  const tinygltf::Model m = test::load_glb(path);
   const Colormap& cm = Colormap::get(in.colormap);
 
   // Extras on the asset.
@@ -184,12 +167,12 @@ void check_heatmap(const HeatmapInput& in, const fs::path& path, std::size_t hot
   for (const auto& p : vmesh.primitives) triangles += m.accessors.at(p.indices).count / 3;
   EXPECT_EQ(triangles, in.mesh->faces.size());
 
-  const auto pos = read_accessor<float>(m, attr.at("POSITION"), 3);
-  const auto col = read_accessor<float>(m, attr.at("COLOR_0"), 3);
-  const auto uv = read_accessor<float>(m, attr.at("TEXCOORD_0"), 2);
-  const auto seen = read_accessor<float>(m, attr.at("_SEEN"), 1);
-  const auto kpa = read_accessor<float>(m, attr.at("_PRESSURE_KPA"), 1);
-  const auto blanch = read_accessor<float>(m, attr.at("_BLANCH"), 1);
+  const auto pos = test::read_accessor<float>(m, attr.at("POSITION"), 3);
+  const auto col = test::read_accessor<float>(m, attr.at("COLOR_0"), 3);
+  const auto uv = test::read_accessor<float>(m, attr.at("TEXCOORD_0"), 2);
+  const auto seen = test::read_accessor<float>(m, attr.at("_SEEN"), 1);
+  const auto kpa = test::read_accessor<float>(m, attr.at("_PRESSURE_KPA"), 1);
+  const auto blanch = test::read_accessor<float>(m, attr.at("_BLANCH"), 1);
 
   // Which mesh vertex each output vertex came from (positions are unique in these shapes).
   std::map<std::array<float, 3>, int> vertex_at;
@@ -288,7 +271,7 @@ TEST_F(HeatmapGlb, WithoutTextureOneScene) {
   in.texture = nullptr;
   write_heatmap_glb(in, dir_ / "plain.glb");
   check_heatmap(in, dir_ / "plain.glb", 0);
-  EXPECT_TRUE(load(dir_ / "plain.glb").images.empty());
+  EXPECT_TRUE(test::load_glb(dir_ / "plain.glb").images.empty());
 }
 
 TEST_F(HeatmapGlb, DifferenceUsesTheDivergingMapSymmetrically) {
@@ -301,7 +284,7 @@ TEST_F(HeatmapGlb, DifferenceUsesTheDivergingMapSymmetrically) {
   in.scalars = {{"_PRESSURE_KPA", in.values}, {"_BLANCH", c.blanch_at_vertex}};
   in.quantity = "pressure_difference_kpa";
   write_difference_glb(in, 0, dir_ / "diff.glb");
-  const tinygltf::Model m = load(dir_ / "diff.glb");
+  const tinygltf::Model m = test::load_glb(dir_ / "diff.glb");
   const tinygltf::Value& info = m.asset.extras.Get("clearfit");
   EXPECT_EQ(info.Get("colormap").Get<std::string>(), "coolwarm");
   const double hi = info.Get("range").Get(1).GetNumberAsDouble();

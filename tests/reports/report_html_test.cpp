@@ -9,13 +9,8 @@
 #include <cstring>
 #include <regex>
 
-#include "../../reports/src/report_html_glb.hpp"
+#include "../support/glb_read.hpp"
 #include "report_fixture.hpp"
-
-// Declared by tiny_gltf.h only in its implementation part; libtinygltf.so defines it.
-namespace tinygltf {
-std::string base64_decode(std::string const& encoded);
-}
 
 namespace clearfit {
 namespace {
@@ -137,10 +132,13 @@ TEST_F(ReportHtml, HoverTableHoldsEverySeenVertexWithItsValues) {
     const std::string open = "id=\"clearfit-data\">";
     const std::size_t a = html.find(open) + open.size(), b = html.find("</script>", a);
     const json vertices = json::parse(html.substr(a, b - a)).at("vertices");
-    const auto glb = reports::detail::load_heatmap_glb(dir_ / "heatmap.glb");
-    const std::vector<float> kpa = glb.scalar("_PRESSURE_KPA"), sigma = glb.scalar("_PRESSURE_SIGMA_KPA"), signal = glb.scalar("_BLANCH");
-    const std::string rows_bytes = tinygltf::base64_decode(vertices.at("rows").get<std::string>());
-    const std::string ids_bytes = tinygltf::base64_decode(vertices.at("ids").get<std::string>());
+    const tinygltf::Model glb = test::load_glb(dir_ / "heatmap.glb");
+    const std::vector<float> position_mm = test::heatmap_attribute(glb, "POSITION", 3), seen_flag = test::heatmap_attribute(glb, "_SEEN");
+    const std::vector<float> kpa = test::heatmap_attribute(glb, "_PRESSURE_KPA"), sigma = test::heatmap_attribute(glb, "_PRESSURE_SIGMA_KPA"),
+                             signal = test::heatmap_attribute(glb, "_BLANCH");
+    ASSERT_EQ(seen_flag.size() * 3, position_mm.size());
+    const std::string rows_bytes = test::base64_decode(vertices.at("rows").get<std::string>());
+    const std::string ids_bytes = test::base64_decode(vertices.at("ids").get<std::string>());
     const std::size_t n = vertices.at("count").get<std::size_t>();
     ASSERT_EQ(rows_bytes.size(), n * 6 * sizeof(float));
     ASSERT_EQ(ids_bytes.size(), n * sizeof(std::uint32_t));
@@ -149,16 +147,16 @@ TEST_F(ReportHtml, HoverTableHoldsEverySeenVertexWithItsValues) {
     std::memcpy(rows.data(), rows_bytes.data(), rows_bytes.size());
     std::memcpy(ids.data(), ids_bytes.data(), ids_bytes.size());
     std::size_t seen = 0;
-    for (float f : glb.seen) seen += f > 0.5f;
+    for (float f : seen_flag) seen += f > 0.5f;
     EXPECT_EQ(n, seen);
     EXPECT_EQ(vertices.at("calibrated").get<bool>(), calibrated);
     EXPECT_GT(vertices.at("reach_mm").get<double>(), 0);
     auto same = [](float x, float y) { return x == y || (std::isnan(x) && std::isnan(y)); };
     for (std::size_t i = 0; i < n; ++i) {
       const std::uint32_t v = ids[i];
-      ASSERT_LT(v, glb.vertex_count());
-      ASSERT_GT(glb.seen[v], 0.5f) << "vertex " << v;
-      for (int c = 0; c < 3; ++c) ASSERT_EQ(rows[6 * i + c], glb.position_mm[3 * v + c]) << "vertex " << v;
+      ASSERT_LT(v, seen_flag.size());
+      ASSERT_GT(seen_flag[v], 0.5f) << "vertex " << v;
+      for (int c = 0; c < 3; ++c) ASSERT_EQ(rows[6 * i + c], position_mm[3 * v + c]) << "vertex " << v;
       ASSERT_TRUE(same(rows[6 * i + 3], calibrated ? kpa[v] : NAN)) << "vertex " << v;
       ASSERT_TRUE(same(rows[6 * i + 4], calibrated ? sigma[v] : NAN)) << "vertex " << v;
       ASSERT_TRUE(same(rows[6 * i + 5], signal[v])) << "vertex " << v;
@@ -230,25 +228,14 @@ TEST_F(ReportHtml, SignalOnlyWithoutCalibration) {
 // the page and check its colours against the colormap directly.
 TEST_F(ReportHtml, SignalViewIsRecolouredFromBlanch) {
   const std::string html = generate({});
-  const std::string open = "class=\"clearfit-model\" data-view=\"signal\">";
-  const std::size_t a = html.find(open);
-  ASSERT_NE(a, std::string::npos);
-  const std::size_t b = html.find("</script>", a);
-  const std::string glb = tinygltf::base64_decode(html.substr(a + open.size(), b - a - open.size()));
-  tinygltf::Model model;
-  tinygltf::TinyGLTF loader;
-  std::string err, warn;
-  ASSERT_TRUE(loader.LoadBinaryFromMemory(&model, &err, &warn, reinterpret_cast<const unsigned char*>(glb.data()),
-                                          static_cast<unsigned int>(glb.size())))
-      << err;
+  const std::string glb = test::embedded_glb(html, "signal");
+  ASSERT_FALSE(glb.empty());
+  const tinygltf::Model model = test::parse_glb(glb);
   ASSERT_EQ(model.scenes.size(), 1u);  // one scene per view: model-viewer loads them all
   EXPECT_EQ(model.scenes.at(model.defaultScene).name, "vertex_colors");
   const tinygltf::Mesh& mesh = model.meshes.at(model.nodes.at(model.scenes[model.defaultScene].nodes[0]).mesh);
   auto floats = [&](int accessor) {
-    const tinygltf::Accessor& acc = model.accessors[accessor];
-    const tinygltf::BufferView& bv = model.bufferViews[acc.bufferView];
-    const float* p = reinterpret_cast<const float*>(model.buffers[bv.buffer].data.data() + bv.byteOffset + acc.byteOffset);
-    return std::vector<float>(p, p + acc.count * tinygltf::GetNumComponentsInType(acc.type));
+    return test::read_accessor<float>(model, accessor, tinygltf::GetNumComponentsInType(model.accessors[accessor].type));
   };
   const auto colour = floats(mesh.primitives[0].attributes.at("COLOR_0"));
   const auto blanch = floats(mesh.primitives[0].attributes.at("_BLANCH"));

@@ -4,7 +4,7 @@
 // height field, an upper bound of the distance); report.html embeds a
 // simplified, valid glb whose vertices carry the original attributes.
 // CLEARFIT_VIEW_BENCH=1 also times the 1M-triangle case (skipped otherwise).
-#include "../../reports/src/report_view.hpp"
+#include <clearfit/reports/simplify.hpp>
 
 #include <gtest/gtest.h>
 #include <tiny_gltf.h>
@@ -20,6 +20,7 @@
 #include <set>
 #include <sstream>
 
+#include "../support/glb_read.hpp"
 #include "report_fixture.hpp"
 
 namespace clearfit {
@@ -28,7 +29,9 @@ namespace {
 namespace fs = std::filesystem;
 using report_test::FixtureOptions;
 using report_test::make_assessment_folder;
-using reports::detail::simplify_triangles;
+using reports::simplify_triangles;
+using test::embedded_glb;
+using test::parse_glb;
 
 const fs::path kRepo = fs::path(CLEARFIT_TEST_DATA_DIR).parent_path().parent_path();
 
@@ -149,7 +152,7 @@ TEST(SimplifyTriangles, FlatPlateFollowsTheColours) {
     for (int k = 0; k < 3; ++k) colour[3 * v + k] = c[k];
   }
   // Kept vertices in the blob and in an even disc of the same size (blob < 1e-5 there).
-  auto count = [&](const reports::detail::SimplifiedTriangles& s, bool check_jump) {
+  auto count = [&](const reports::SimplifiedTriangles& s, bool check_jump) {
     std::vector<char> used(nv, 0);
     for (std::uint32_t i : s.triangles) used[i] = 1;
     std::pair<int, int> n{0, 0};
@@ -219,26 +222,6 @@ std::string slurp(const fs::path& p) {
   return s.str();
 }
 
-// The embedded glb of view `key` (base64 in <script class="clearfit-model" data-view=key>).
-std::string embedded_glb(const std::string& html, const std::string& key) {
-  const std::string open = "class=\"clearfit-model\" data-view=\"" + key + "\">";
-  const std::size_t a = html.find(open);
-  if (a == std::string::npos) return {};
-  const std::size_t b = html.find("</script>", a);
-  return tinygltf::base64_decode(html.substr(a + open.size(), b - a - open.size()));
-}
-
-tinygltf::Model parse_glb(const std::string& bytes) {
-  tinygltf::Model model;
-  tinygltf::TinyGLTF loader;
-  std::string err, warn;
-  EXPECT_TRUE(loader.LoadBinaryFromMemory(&model, &err, &warn,
-                                          reinterpret_cast<const unsigned char*>(bytes.data()),
-                                          static_cast<unsigned int>(bytes.size())))
-      << err;
-  return model;
-}
-
 std::size_t triangle_count(const tinygltf::Model& m) {
   std::size_t n = 0;
   for (const tinygltf::Mesh& mesh : m.meshes)
@@ -255,8 +238,7 @@ std::vector<std::vector<float>> vertex_records(const tinygltf::Model& m) {
   if (!prim) return {};
   std::vector<std::vector<float>> out(m.accessors.at(prim->attributes.at("POSITION")).count);
   for (const auto& [name, index] : prim->attributes) {
-    const std::vector<float> f = reports::detail::read_floats(
-        m, index, tinygltf::GetNumComponentsInType(m.accessors[index].type), name);
+    const std::vector<float> f = test::read_accessor<float>(m, index, tinygltf::GetNumComponentsInType(m.accessors[index].type));
     const std::size_t k = f.size() / out.size();
     for (std::size_t v = 0; v < out.size(); ++v) out[v].insert(out[v].end(), &f[v * k], &f[v * k] + k);
   }
@@ -388,11 +370,19 @@ TEST_F(ReportView, MillionTrianglesTiming) {
   FixtureOptions o;
   o.n = 500;
   make_assessment_folder(dir_, o);
-  const reports::detail::HeatmapGlb g = reports::detail::load_heatmap_glb(dir_ / "heatmap.glb");
+  const tinygltf::Model g = test::load_glb(dir_ / "heatmap.glb");  // its vertex-coloured mesh, as the page simplifies it
+  const std::vector<float> position = test::heatmap_attribute(g, "POSITION", 3), colour = test::heatmap_attribute(g, "COLOR_0", 3);
+  std::vector<std::uint32_t> triangles;
+  for (const tinygltf::Mesh& mesh : g.meshes)
+    for (const tinygltf::Primitive& p : mesh.primitives) {
+      if (mesh.name != "heatmap_vertex_colors") continue;
+      ASSERT_EQ(g.accessors.at(p.indices).componentType, TINYGLTF_COMPONENT_TYPE_UNSIGNED_INT);
+      const auto t = test::read_accessor<std::uint32_t>(g, p.indices, 1);
+      triangles.insert(triangles.end(), t.begin(), t.end());
+    }
   t0 = clock::now();
-  const auto view = reports::detail::simplify_heatmap_for_view(g, 400000);
-  std::printf("slab heatmap.glb %zu -> %zu triangles (%zu -> %zu vertices): %.2f s\n", g.triangles.size() / 3,
-              view->triangles.size() / 3, g.vertex_count(), view->vertex_count(),
+  const auto view = simplify_triangles(position, triangles, 400000, colour);
+  std::printf("slab heatmap.glb %zu -> %zu triangles: %.2f s\n", triangles.size() / 3, view.triangles.size() / 3,
               std::chrono::duration<double>(clock::now() - t0).count());
   reports::HtmlReportOptions none;
   none.max_view_triangles = 0;
