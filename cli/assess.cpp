@@ -60,7 +60,8 @@ Run add_assess(CLI::App& app) {
     const LoadedPart* part = p->part.get();
     const RefractionMap& map = p->map;
     const auto& calibration = p->calibration;
-    const Assessment a = assess_captures(scene, p->sources, calibration, p->options);
+    Assessment a = assess_captures(scene, p->sources, calibration, p->options);
+    a.warnings.insert(a.warnings.begin(), p->warnings.begin(), p->warnings.end());
     if (!o->quiet) std::cerr << "\n";
     const auto& notes = p->notes;
 

@@ -14,6 +14,26 @@ void add_assess_options(CLI::App& sub, AssessOpts& o) {
   sub.add_flag("--quiet", o.quiet, "No progress on stderr");
 }
 
+namespace {
+
+/// kPa thresholds without a pressure calibration (the hotspots are then found on the blanching signal).
+/// Asked for on the command line, for this run: refused. Set in the scene file: a warning, not an error,
+/// since a scene file's settings serve every run of it, with a calibration (calibration.pressure or
+/// --calibration) or without one.
+void warn_or_refuse_kpa_thresholds(const Scene& sc, const SceneFields::Options& options, std::vector<std::string>& warnings) {
+  if (given_on_command_line(options, "assess.thresholds_kpa"))
+    throw InputError("", "--thresholds-kpa", "needs a pressure calibration: without one clearfit reports the blanching signal, not kPa",
+                     "give --calibration CAL.json (clearfit calibrate-pressure), or --signal-threshold / --significance-sigmas for the signal");
+  const auto it = sc.file_keys.find("assess.thresholds_kpa");
+  if (it == sc.file_keys.end()) return;
+  warnings.push_back(sc.file.string() + ": line " + std::to_string(it->second) + ", key 'assess.thresholds_kpa': ignored, since the " +
+                     "scene has no calibration.pressure (hotspots are found on the blanching signal, not in kPa); give " +
+                     "calibration.pressure or --calibration CAL.json (clearfit calibrate-pressure) for kPa thresholds, or " +
+                     "assess.signal_thresholds / significance_sigmas for thresholds on the signal");
+}
+
+}  // namespace
+
 /// Reads the scene (the command line wins), checks the options, loads and
 /// traces the part, reads the calibration.
 std::unique_ptr<Prepared> prepare(AssessOpts& o) {
@@ -25,9 +45,7 @@ std::unique_ptr<Prepared> prepare(AssessOpts& o) {
   if (cap.both.empty() && (cap.baseline.empty() || cap.worn.empty()))
     throw InputError(o.scene_file, "captures", "a phase is missing: give 'baseline' (not worn) and 'worn', or 'both'",
                      "see the scene file format in README.md");
-  if (sc.calibration.pressure.empty() && given_on_command_line(o.options, "assess.thresholds_kpa"))
-    throw InputError("", "--thresholds-kpa", "needs a pressure calibration: without one clearfit reports the blanching signal, not kPa",
-                     "give --calibration CAL.json (clearfit calibrate-pressure), or --signal-threshold / --significance-sigmas for the signal");
+  if (sc.calibration.pressure.empty()) warn_or_refuse_kpa_thresholds(sc, o.options, p->warnings);
   if (!o.quiet) std::cerr << "clearfit assess: loading the part and tracing the refraction map\n";
   p->part = load_part_scene(sc, true, std::cerr);
   p->map = compute_part_map(*p->part, o.cache, &p->cache);

@@ -92,6 +92,7 @@ std::optional<YAML::Node> SceneFields::take(const std::string& name) {
   named_.insert(name);
   const YAML::Node n = node_[name];
   if (!n || given(full(name)) || ignored_.count(name)) return std::nullopt;
+  reader_->note_given(full(name), n);
   return n;
 }
 
@@ -433,6 +434,7 @@ void read_scene(const std::filesystem::path& file, Scene& scene, const SceneFiel
   SceneFields f(root, reader, options);
   scene.bind(f);
   f.finish();
+  scene.file_keys = reader.given();
   check_scene(scene, options);
 }
 

@@ -359,10 +359,17 @@ TEST_F(AssessCli, WithoutCalibrationTheHalfPeakAreaIsWithinTwentyPercentOfTheTru
 }
 
 TEST_F(AssessCli, WithoutCalibrationTheSignalThresholdsAreOptions) {
-  scene(two_captures());
+  // kPa thresholds in the scene file without a calibration: ignored, with a warning naming the file, line and key.
+  const std::string scene_text = read_text(scene(two_captures(), "assess: {thresholds_kpa: [4, 6]}\n"));
+  const std::string line = std::to_string(1 + std::count(scene_text.begin(), scene_text.begin() + scene_text.find("assess:"), '\n'));
   RunResult r = assess({"--significance-sigmas", "8"});
   ASSERT_EQ(r.exit_code, 0) << r;
   auto report = nlohmann::json::parse(read_text(work() / "out" / "report.json"));
+  const std::string warning = "scene.yaml: line " + line + ", key 'assess.thresholds_kpa': ignored";  // the file as given
+  EXPECT_NE(r.out.find("warning: " + warning), std::string::npos) << r;
+  ASSERT_TRUE(report["warnings"].is_array());
+  EXPECT_EQ(report["warnings"][0].get<std::string>().rfind(warning, 0), 0u) << report["warnings"].dump(1);
+  EXPECT_NE(report["warnings"][0].get<std::string>().find("calibration.pressure"), std::string::npos);
   ASSERT_EQ(report["thresholds_signal"].size(), 1u);
   EXPECT_NEAR(report["thresholds_signal"][0].get<double>(), 8 * report["signal"]["noise_sigma"].get<double>(), 1e-9);
   EXPECT_EQ(report["options"]["significance_sigmas"], 8.0);

@@ -40,6 +40,7 @@ struct Prepared {
   std::optional<double> baseline_gap_mm;        ///< nullopt: estimated (auto)
   std::optional<PressureCalibration> calibration;
   std::vector<std::string> notes;
+  std::vector<std::string> warnings;  ///< about the scene's settings, for the assessment's warnings (report.json)
   std::string cache;
   AssessmentOptions options;
   CaptureSources sources;

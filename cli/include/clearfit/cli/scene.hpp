@@ -106,9 +106,14 @@ class SceneReader {
   /// A list of finite numbers (exactly `count` unless 0).
   std::vector<double> numbers(const YAML::Node& n, const std::string& full, std::size_t count) const;
   const std::filesystem::path& file() const { return file_; }
+  /// Records that the file gives the key `full` (and the command line does not), at `node`'s line.
+  void note_given(const std::string& full, const YAML::Node& node) const { given_[full] = node.Mark().line + 1; }
+  /// The keys noted so far with their lines (1-based).
+  const std::map<std::string, int>& given() const { return given_; }
 
  private:
   std::filesystem::path file_;
+  mutable std::map<std::string, int> given_;
 };
 
 /// The keys of one section: reads them from the file, or registers their
@@ -367,6 +372,8 @@ struct SimulationSection {
 /// A whole scene file.
 struct Scene {
   std::filesystem::path file;  ///< empty: no scene file (command line only)
+  /// The keys the file gave and the command line did not ("assess.thresholds_kpa"), with their lines (1-based).
+  std::map<std::string, int> file_keys;
   PartSection part;
   MapSection map;
   OutputsSection outputs;
