@@ -190,7 +190,13 @@ std::vector<std::string> write_capture_truth(const Scene& sc, const SimulationSe
   if (!sc.part.pose.empty()) inputs.emplace_back("pose", sc.part.pose);
   if (spec.pressure_map) inputs.emplace_back("pressure_map", *spec.pressure_map);
   if (spec.scale != 1.0) {
-    write_cameramodel(part.camera, dir / "camera.cameramodel");
+    if (part.projection_uncertainty) {  // kept, in the scaled camera's pixels
+      ProjectionUncertainty u = *part.projection_uncertainty;
+      for (double& px : u.px) px *= spec.scale;
+      write_cameramodel(part.camera, u, dir / "camera.cameramodel");
+    } else {
+      write_cameramodel(part.camera, dir / "camera.cameramodel");
+    }
     inputs.emplace_back("scaled_camera", "camera.cameramodel");
     written.push_back("camera.cameramodel");
   }

@@ -1,6 +1,7 @@
 // clearfit simulate: a small scene renders videos, truth and presses; bad
 // `simulation:` keys are named with their line, exit 2, nothing written.
 #include <clearfit/camera/camera_model.hpp>
+#include <clearfit/camera/projection_uncertainty.hpp>
 #include <clearfit/geometry/import.hpp>
 #include <clearfit/geometry/shapes.hpp>
 #include <nlohmann/json.hpp>
@@ -54,6 +55,28 @@ TEST_F(Simulate, WritesCapturesTruthAndPresses) {
   const std::string csv = read_text(work() / "sim" / "presses.csv");
   EXPECT_EQ(std::count(csv.begin(), csv.end(), '\n'), 1 + 2 * 8 * 3);
   EXPECT_NE(r.err.find("frame 9/9"), std::string::npos) << r;
+}
+
+// Rendered at half resolution, the scaled camera model keeps the projection uncertainty, each σ scaled as its
+// pixels are (the scaled model's fx over the original's), the cells and distance as they were.
+TEST_F(Simulate, ScaledCameraKeepsItsProjectionUncertaintyInItsPixels) {
+  const CameraModel cam = read_cameramodel(work() / "cam.cameramodel");
+  ProjectionUncertainty u;
+  u.cells_x = 2, u.cells_y = 1, u.distance_mm = 60, u.px = {0.4, 0.8};
+  write_cameramodel(cam, u, work() / "cam.cameramodel");
+  scene(kGood);
+  const RunResult r = run({"simulate", "scene.yaml", "--out", "sim", "--no-cache", "--no-presses", "--scale", "0.5", "--quiet"});
+  ASSERT_EQ(r.exit_code, 0) << r;
+  const CameraModel scaled = read_cameramodel(work() / "sim" / "camera.cameramodel");
+  const double ratio = scaled.intrinsics[0] / cam.intrinsics[0];
+  EXPECT_NEAR(ratio, 0.5, 1e-12);
+  const auto v = read_projection_uncertainty(work() / "sim" / "camera.cameramodel");
+  ASSERT_TRUE(v.has_value()) << read_text(work() / "sim" / "camera.cameramodel");
+  EXPECT_EQ(v->cells_x, 2);
+  EXPECT_EQ(v->cells_y, 1);
+  EXPECT_EQ(v->distance_mm, 60);
+  ASSERT_EQ(v->px.size(), 2u);
+  for (int k = 0; k < 2; ++k) EXPECT_NEAR(v->px[k], ratio * u.px[k], 1e-12) << k;
 }
 
 TEST_F(Simulate, BadKeysAreNamedWithTheirLine) {
