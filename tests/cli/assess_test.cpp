@@ -4,6 +4,7 @@
 // them — and the bad inputs the issue names, each refused with exit 2 and no
 // output folder.
 #include "cli_support.hpp"
+#include "shared_fixture.hpp"
 #include "targets.hpp"
 
 #include <clearfit/geometry/contact.hpp>
@@ -25,27 +26,29 @@ const fs::path kWristband = fs::path(CLEARFIT_SAMPLES_DIR) / "wristband";
 
 class AssessCli : public CliTest {
  protected:
-  /// Simulated captures shared by the tests of this suite (rendered once).
+  /// Simulated captures and the wearer's calibration shared by the tests of this suite (rendered once for
+  /// every test process: shared_fixture.hpp).
   static fs::path captures() {
     static const fs::path dir = [] {
-      const fs::path d = fs::temp_directory_path() / ("clearfit_assess_captures_" + std::to_string(::getpid()));
-      fs::remove_all(d);
-      fs::create_directories(d);
-      write_text(d / "sim.yaml", "mesh: " + (kWristband / "wristband.obj").string() +
-                                     "\ncontact: {group: contact}\ncamera: " + (kWristband / "camera.cameramodel").string() +
-                                     "\nmap: {mode: adaptive}\n"
-                                     "simulation:\n  seed: 11\n  format: huffyuv\n  scale: 0.25\n"
-                                     "  timeline: {fps: 30, baseline_s: 2, press_s: 2.5}\n  skin: {tone: medium}\n"
-                                     "  pressure:\n    texel_mm: 0.1\n    sources:\n"
-                                     "      - {name: a, type: gaussian, center_part_mm: [-6, 3, 30], peak_kpa: 14, sigma_mm: 1.6}\n"
-                                     "      - {name: b, type: gaussian, center_part_mm: [6, -3, 30], peak_kpa: 10, sigma_mm: 1.2}\n"
-                                     "  presses: {diameters_mm: [3], levels: 9, repetitions: 3}\n");
-      const RunResult sim = run_clearfit({"simulate", "sim.yaml", "--out", "captures", "--quiet", "--no-cache"}, d, d, 300);
-      if (sim.exit_code != 0) throw std::runtime_error("simulate failed:\n" + sim.err);
-      const RunResult cal = run_clearfit({"calibrate-pressure", "--presses", "captures/presses.csv", "--person", "wearer-1",
-                                          "--camera", "captures/camera.cameramodel", "--out", "captures/calibration.json"},
-                                         d, d, 60);
-      if (cal.exit_code != 0) throw std::runtime_error("calibrate-pressure failed:\n" + cal.err);
+      const std::string sim = "mesh: " + (kWristband / "wristband.obj").string() +
+                              "\ncontact: {group: contact}\ncamera: " + (kWristband / "camera.cameramodel").string() +
+                              "\nmap: {mode: adaptive}\n"
+                              "simulation:\n  seed: 11\n  format: huffyuv\n  scale: 0.25\n"
+                              "  timeline: {fps: 30, baseline_s: 2, press_s: 2.5}\n  skin: {tone: medium}\n"
+                              "  pressure:\n    texel_mm: 0.1\n    sources:\n"
+                              "      - {name: a, type: gaussian, center_part_mm: [-6, 3, 30], peak_kpa: 14, sigma_mm: 1.6}\n"
+                              "      - {name: b, type: gaussian, center_part_mm: [6, -3, 30], peak_kpa: 10, sigma_mm: 1.2}\n"
+                              "  presses: {diameters_mm: [3], levels: 9, repetitions: 3}\n";
+      const fs::path d = shared_fixture("assess-captures", sim, {kWristband / "wristband.obj", kWristband / "camera.cameramodel"},
+                                        [&](const fs::path& into) {
+        write_text(into / "sim.yaml", sim);
+        const RunResult r = run_clearfit({"simulate", "sim.yaml", "--out", "captures", "--quiet", "--no-cache"}, into, into, 300);
+        if (r.exit_code != 0) throw std::runtime_error("simulate failed:\n" + r.err);
+        const RunResult cal = run_clearfit({"calibrate-pressure", "--presses", "captures/presses.csv", "--person", "wearer-1",
+                                            "--camera", "captures/camera.cameramodel", "--out", "captures/calibration.json"},
+                                           into, into, 60);
+        if (cal.exit_code != 0) throw std::runtime_error("calibrate-pressure failed:\n" + cal.err);
+      });
       return d / "captures";
     }();
     return dir;
@@ -54,18 +57,19 @@ class AssessCli : public CliTest {
   /// contact boundary, which a held baseline sees only in part (baseline_gap_test.cpp).
   static fs::path touching_captures() {
     static const fs::path dir = [] {
-      const fs::path d = captures().parent_path();
-      std::string sim = read_text(d / "sim.yaml");
+      std::string sim = read_text(captures().parent_path() / "sim.yaml");
       sim.replace(sim.find("  pressure:"), 0, "  baseline: {part: touching}\n");
-      write_text(d / "sim_touching.yaml", sim);
-      const RunResult r = run_clearfit({"simulate", "sim_touching.yaml", "--out", "touching", "--quiet", "--no-cache", "--no-presses"},
-                                       d, d, 300);
-      if (r.exit_code != 0) throw std::runtime_error("simulate failed:\n" + r.err);
+      const fs::path d = shared_fixture("assess-touching", sim, {kWristband / "wristband.obj", kWristband / "camera.cameramodel"},
+                                        [&](const fs::path& into) {
+        write_text(into / "sim_touching.yaml", sim);
+        const RunResult r = run_clearfit({"simulate", "sim_touching.yaml", "--out", "touching", "--quiet", "--no-cache", "--no-presses"},
+                                         into, into, 300);
+        if (r.exit_code != 0) throw std::runtime_error("simulate failed:\n" + r.err);
+      });
       return d / "touching";
     }();
     return dir;
   }
-  static void TearDownTestSuite() { fs::remove_all(captures().parent_path()); }
 
   /// A scene in work() using the shared captures; `extra` is appended verbatim.
   fs::path scene(const std::string& captures_yaml, const std::string& extra = "",

@@ -7,6 +7,7 @@
 // localhost by the test (slurmctld + slurmd + munged with a private key and
 // socket), which must give the same tables.
 #include "cli_support.hpp"
+#include "shared_fixture.hpp"
 
 #include <nlohmann/json.hpp>
 
@@ -21,34 +22,36 @@ const fs::path kWristband = fs::path(CLEARFIT_SAMPLES_DIR) / "wristband";
 
 class StudyCli : public CliTest {
  protected:
-  /// Two simulated captures (seeds 11 and 12) and the wearer's calibration, shared by the suite.
+  /// Two simulated captures (seeds 11 and 12) and the wearer's calibration, shared by the suite (made once for
+  /// every test process: shared_fixture.hpp).
   static fs::path data() {
     static const fs::path dir = [] {
-      const fs::path d = fs::temp_directory_path() / ("clearfit_study_data_" + std::to_string(::getpid()));
-      fs::remove_all(d);
-      fs::create_directories(d);
-      for (const char* seed : {"11", "12"}) {
-        write_text(d / "sim.yaml",
-                   "mesh: " + (kWristband / "wristband.obj").string() + "\ncontact: {group: contact}\ncamera: " +
-                       (kWristband / "camera.cameramodel").string() + "\nmap: {mode: adaptive}\nsimulation:\n  seed: " + seed +
-                       "\n  format: huffyuv\n  scale: 0.25\n  timeline: {fps: 30, baseline_s: 1.5, press_s: 2}\n"
-                       "  pressure:\n    texel_mm: 0.1\n    sources:\n"
-                       "      - {name: a, type: gaussian, center_part_mm: [-6, 3, 30], peak_kpa: 14, sigma_mm: 1.6}\n"
-                       "  presses: {diameters_mm: [3], levels: 9, repetitions: 2}\n");
-        const RunResult sim = run_clearfit({"simulate", "sim.yaml", "--out", std::string("captures-") + seed, "--quiet", "--no-cache"}, d, d, 300);
-        if (sim.exit_code != 0) throw std::runtime_error("simulate failed:\n" + sim.err);
-      }
-      const RunResult cal = run_clearfit({"calibrate-pressure", "--presses", "captures-11/presses.csv", "--person", "wearer-1",
-                                          "--camera", "captures-11/camera.cameramodel", "--out", "calibration.json"}, d, d, 60);
-      if (cal.exit_code != 0) throw std::runtime_error("calibrate-pressure failed:\n" + cal.err);
-      write_text(d / "scene.yaml", "mesh: " + (kWristband / "wristband.obj").string() +
-                                       "\ncontact: {group: contact}\ncamera: captures-11/camera.cameramodel\n"
-                                       "map: {mode: adaptive}\noutputs: {texel_mm: 0.1}\ncaptures: {window_frames: 30}\n");
-      return d;
+      auto sim = [](const char* seed) {
+        return "mesh: " + (kWristband / "wristband.obj").string() + "\ncontact: {group: contact}\ncamera: " +
+               (kWristband / "camera.cameramodel").string() + "\nmap: {mode: adaptive}\nsimulation:\n  seed: " + seed +
+               "\n  format: huffyuv\n  scale: 0.25\n  timeline: {fps: 30, baseline_s: 1.5, press_s: 2}\n"
+               "  pressure:\n    texel_mm: 0.1\n    sources:\n"
+               "      - {name: a, type: gaussian, center_part_mm: [-6, 3, 30], peak_kpa: 14, sigma_mm: 1.6}\n"
+               "  presses: {diameters_mm: [3], levels: 9, repetitions: 2}\n";
+      };
+      const std::string scene = "mesh: " + (kWristband / "wristband.obj").string() +
+                                "\ncontact: {group: contact}\ncamera: captures-11/camera.cameramodel\n"
+                                "map: {mode: adaptive}\noutputs: {texel_mm: 0.1}\ncaptures: {window_frames: 30}\n";
+      return shared_fixture("study-data", sim("11") + sim("12") + scene, {kWristband / "wristband.obj", kWristband / "camera.cameramodel"},
+                            [&](const fs::path& d) {
+        for (const char* seed : {"11", "12"}) {
+          write_text(d / "sim.yaml", sim(seed));
+          const RunResult r = run_clearfit({"simulate", "sim.yaml", "--out", std::string("captures-") + seed, "--quiet", "--no-cache"}, d, d, 300);
+          if (r.exit_code != 0) throw std::runtime_error("simulate failed:\n" + r.err);
+        }
+        const RunResult cal = run_clearfit({"calibrate-pressure", "--presses", "captures-11/presses.csv", "--person", "wearer-1",
+                                            "--camera", "captures-11/camera.cameramodel", "--out", "calibration.json"}, d, d, 60);
+        if (cal.exit_code != 0) throw std::runtime_error("calibrate-pressure failed:\n" + cal.err);
+        write_text(d / "scene.yaml", scene);
+      });
     }();
     return dir;
   }
-  static void TearDownTestSuite() { fs::remove_all(data()); }
 
   fs::path manifest(const std::string& extra_trial_keys = "") {
     const fs::path d = data();
