@@ -36,6 +36,10 @@ void Quadtree::resolve_boundary(const std::vector<Cell>& cells) {
     for (std::uint32_t p : per_cell[ci])
       if (traced_[p] == kPending && map_.status[p] == PixelStatus::valid) todo.push_back(p);
     if (todo.empty()) return;
+    if (flat_) {  // the map jumps at every facet edge: no fit spans them
+      untrusted[ci] = std::move(todo);
+      return;
+    }
     long long n = 0;
     untrusted[ci] = fit_behind(cells[ci], todo, fit_err[ci], n);
     fitted += n;

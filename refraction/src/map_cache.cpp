@@ -13,8 +13,9 @@ constexpr char kMagic[8] = {'C', 'F', 'M', 'A', 'P', '0', '0', '1'};
 // Bumped when compute_refraction_map's results change for the same inputs
 // (2: the adaptive mode's boundary resolver; 3: four checks per cell and the
 // parent's estimate; 4: checks off node rows in short cells, parents far above
-// the tolerance not trusted), so older cached maps are not reused.
-constexpr int kMapAlgorithm = 4;
+// the tolerance not trusted; 5: four drawn checks more per cell, one entry
+// face per accepted cell with flat normals), so older cached maps are not reused.
+constexpr int kMapAlgorithm = 5;
 
 struct Fnv {
   std::uint64_t h = 14695981039346656037ull;

@@ -2,12 +2,14 @@
 // Stage 4, grid and adaptive modes: a quadtree over pixel cells with up to
 // nine nodes each (corners, edge midpoints, centre), all traced exactly; the
 // interior is filled by tensor-product quadratic (Lagrange) interpolation of
-// the nodes. Four check pixels (the quadrants' centres) are traced too;
-// adaptive splits the cell into its quadrants (whose corners are nodes
-// already) unless the interpolation is within half the tolerance at all four
-// and the parent's nodes and checks were all valid with an error of at most
-// kTrustedParent tolerances (a cell beside a boundary, a discontinuity or a
-// fold is not accepted on its own checks alone). Each level's
+// the nodes. Eight check pixels (the quadrants' centres and one drawn pixel
+// per quadrant) are traced too; adaptive splits the cell into its quadrants
+// (whose corners are nodes already) unless the interpolation is within half
+// the tolerance at all eight and the parent's nodes and checks were all valid
+// with an error of at most kTrustedParent tolerances (a cell beside a
+// boundary, a discontinuity or a fold is not accepted on its own checks
+// alone); with flat normals every node and check must also have entered the
+// part through one face (the map jumps at facet edges). Each level's
 // nodes and checks are traced in one batch. Small cells that a validity
 // boundary crosses go to the boundary resolver instead of being split.
 //
@@ -29,21 +31,23 @@ struct Cell {
   int x0, y0, x1, y1;             // corner pixels (inclusive)
   double parent_err = kTopLevel;  // the parent's largest check error, mm, or kUnknownErr
 };
-// Check pixels per cell: the centres of its four quadrants (at 1/4 and 3/4 of
-// both diagonals), which become the children's centres when it is split.
-// Two (one diagonal) missed errors like x³ − y³, which vanish on it.
-constexpr int kChecks = 4;
+// Check pixels per cell, at most: the quadrants' centres and one pixel drawn
+// in each quadrant (see checks_of). The four centres alone missed the ripple
+// that facets leave in the map on regularly tessellated parts (p99 1.4 µm
+// at 1 µm on a 6.7k-triangle shell); two (one diagonal) missed errors like
+// x³ − y³, which vanish on it.
+constexpr int kMaxChecks = 8;
 // adaptive accepts a cell when its checks are within this fraction of the
 // tolerance: the map is only piecewise smooth (kinks along the images of mesh
 // edges, where interpolated normals and facets meet), so the error between the
-// checks reaches about twice theirs. Measured on the random freeform family
-// (30k triangles, 320x240 and 640x480; tests/refraction/map_tolerance_test.cpp)
-// at 1 µm: with a chart the p99 stays at 0.35-0.91 µm and the max at
-// 0.56-2.03 µm. Without one the interpolated points lie on a smooth surface
-// through the nodes, off the flat facets the exact points lie on by up to
-// the facets' sag (|dn|·edge/8, about 1 µm on these parts), which the checks
-// do not bound: p99 up to 1.23 µm, max up to 2.3 µm (a quarter of the
-// tolerance did not bound it either, at twice the traces).
+// checks reaches about twice theirs. Without a chart the interpolated points
+// lie on a smooth surface through the nodes, off the flat facets the exact
+// points lie on by up to the facets' sag (|dn|·edge/8); the drawn checks
+// see it where the centres alone, at one place of a regular tessellation,
+// did not (p99 1.23 µm before them). Measured on the random freeform family
+// (tests/refraction/map_tolerance_test.cpp, 320x240 and 640x480, 1 µm): with
+// a chart p99 0.36-0.64 µm, max 0.56-2.27 µm; without, p99 0.11-0.84 µm, max
+// 0.65-2.53 µm.
 constexpr double kAcceptFraction = 0.5;
 // adaptive trusts a cell's checks only when its parent's error was at most
 // this many tolerances: a smooth map's interpolation error falls 2-8x per
@@ -125,7 +129,12 @@ class Quadtree {
   /// Exact trace of the listed pixels that are not traced yet.
   void trace_pixels(const std::vector<std::uint32_t>& pixels_in);
   static bool done(const Cell& c) { return c.x1 - c.x0 <= 2 && c.y1 - c.y0 <= 2; }  // every pixel is a node
-  static std::pair<int, int> check_xy(const Cell& c, int k);
+  struct Checks {
+    int n = 0;
+    int x[kMaxChecks], y[kMaxChecks];
+    std::uint32_t pixel[kMaxChecks];
+  };
+  Checks checks_of(const Cell& c) const;
   bool corners_differ(const Cell& c) const;
   enum Decision : char { skip = 0, accept_valid = 1, accept_invalid = 2, split = 3, to_resolver = 4 };
   void decide(const std::vector<Cell>& cells, std::vector<char>& decision, std::vector<double>& cell_err) const;
@@ -155,6 +164,11 @@ class Quadtree {
   const double accept_mm_;  // kAcceptFraction * tol_mm_
   const std::vector<int>& component_;
   std::vector<char> traced_;
+  // Flat normals only: the entry face of every traced pixel. The map jumps
+  // where the entry face changes (each facet refracts with its own normal), so
+  // a cell is accepted only if its nodes and checks all entered through one face.
+  const bool flat_;
+  std::vector<std::int32_t> entry_face_;
   std::optional<ChartLocator> locator_;
   double worst_ = 0;
 };

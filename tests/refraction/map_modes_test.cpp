@@ -87,7 +87,8 @@ TEST(MapModes, AdaptiveMeetsItsToleranceOnTheBand) {
     EXPECT_LT(c.mismatched, 320 * 240 / 200) << tol;   // < 0.5 % of pixels, at validity edges only
     EXPECT_LT(approx.stats.traced, previous_traced) << tol;
     previous_traced = approx.stats.traced;
-    if (tol >= 30.0) EXPECT_LT(approx.stats.traced, exact.stats.traced / 5) << tol;
+    // 30 µm: about a quarter of the exact trace (nodes and eight checks per cell).
+    if (tol >= 30.0) EXPECT_LT(approx.stats.traced, exact.stats.traced / 4) << tol;
   }
 }
 
