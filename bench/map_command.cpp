@@ -1,11 +1,14 @@
 // clearfit-bench map: run time against error of the refraction map's modes
 // (exact, grid, adaptive) on the analytic parts, against the exact trace and
-// against the floor of two batched ray casts per pixel measured in the same run.
+// against the floor of two batched ray casts per pixel measured in the same run
+// (with clearfit's ray index, and with plain Embree packets: embree_floor.hpp).
+#include "embree_floor.hpp"
 #include "map_scenes.hpp"
 
 #include <clearfit/cli/commands.hpp>
 
 #include <clearfit/atomic_file.hpp>
+#include <clearfit/geometry/import.hpp>
 #include <clearfit/error.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
@@ -40,6 +43,7 @@ struct Row {
   int triangles = 0;
   MapOptions::Mode kind = MapOptions::Mode::exact;
   double param = 0;
+  double emb_ms = 0, emb_build_ms = 0, emb_cpu_ms = 0, index_ms = 0;  // Embree floor: casts, BVH, CPU; clearfit's index build
   double ms = 0, trace_ms = 0, floor_ms = 0, floor_recast_ms = 0, cpu_ms = 0, floor_cpu_ms = 0, exact_cpu_ms = 0, exact_ms = 0, first_ms = 0, unproject_ms = 0;
   long long traced = 0, interpolated = 0, valid = 0, pixels = 0;
   double coverage = 0, est_max_um = 0;
@@ -129,19 +133,48 @@ std::string csv_text(const std::vector<Row>& rows, int repeat) {
   return o.str();
 }
 
+// The part and the posed camera as files, and the command that maps them.
+void export_part(const std::string& dir, const bench::Scene& scene, CameraModel camera, const Rigid3& pose,
+                 const std::string& size) {
+  std::string stem = scene.name;
+  std::replace(stem.begin(), stem.end(), ':', '-');
+  const std::filesystem::path mesh = std::filesystem::path(dir) / (stem + ".obj");
+  const std::filesystem::path cam = std::filesystem::path(dir) / (stem + "_" + size + ".cameramodel");
+  std::filesystem::create_directories(dir);
+  if (!std::filesystem::exists(mesh)) save_mesh(scene.mesh, mesh);
+  camera.cam_from_part = pose;
+  write_cameramodel(camera, cam);
+  std::cerr << "bench: exported; whole process: clearfit map --mesh " << mesh.string() << " --camera " << cam.string()
+            << " --contact-group contact --no-cache --out " << (std::filesystem::path(dir) / (stem + "_" + size + ".npy")).string()
+            << "\n";
+}
+
 void print_table(const std::vector<Row>& rows) {
-  std::printf("%-6s %-9s %-12s %8s %6s %8s %6s %6s %6s %6s %8s %8s %6s %9s %9s %9s %6s %6s %6s\n", "shape", "size", "mode", "time_ms",
-              "xfloor", "floor_ms", "xfl_rc", "speed", "cpu_xf", "cpu_sp", "first_ms", "unproj", "traced", "median_um", "p99_um", "max_um", "vdiff",
+  std::printf("%-6s %-9s %-12s %8s %6s %8s %6s %6s %6s %6s %6s %6s %8s %8s %6s %9s %9s %9s %6s %6s %6s\n", "shape", "size", "mode", "time_ms",
+              "xfloor", "floor_ms", "xfl_rc", "emb_ms", "xemb", "speed", "cpu_xf", "cpu_sp", "first_ms", "unproj", "traced", "median_um", "p99_um", "max_um", "vdiff",
               "rdiff", "cover");
   std::string last;
   for (const Row& r : rows) {
     if (!last.empty() && last != r.shape + r.size) std::printf("\n");
     last = r.shape + r.size;
-    std::printf("%-6s %-9s %-12s %8.1f %6.2f %8.1f %6.2f %5.1fx %6.2f %5.1fx %8.1f %8.1f %5.1f%% %9.3g %9.3g %9.3g %6lld %6lld %5.1f%%\n",
+    std::printf("%-6s %-9s %-12s %8.1f %6.2f %8.1f %6.2f %6.1f %6.2f %5.1fx %6.2f %5.1fx %8.1f %8.1f %5.1f%% %9.3g %9.3g %9.3g %6lld %6lld %5.1f%%\n",
                 r.shape.c_str(), r.size.c_str(), r.mode.c_str(), r.ms, r.ms / r.floor_ms, r.floor_ms,
-                r.ms / r.floor_recast_ms, r.exact_ms / r.ms, r.cpu_ms / r.floor_cpu_ms, r.exact_cpu_ms / r.cpu_ms,
+                r.ms / r.floor_recast_ms, r.emb_ms, r.ms / r.emb_ms, r.exact_ms / r.ms, r.cpu_ms / r.floor_cpu_ms, r.exact_cpu_ms / r.cpu_ms,
                 r.first_ms, r.unproject_ms, 100.0 * r.traced / std::max(1LL, r.pixels), r.err.median_um, r.err.p99_um,
                 r.err.max_um, r.err.validity_diff, r.err.reason_diff, 100 * r.coverage);
+  }
+  std::printf("\nexact map cold (ray index build + the first exact map, its unprojection included) against the Embree\n"
+              "floor (BVH build + two rtcIntersect16 per pixel), wall clock; and warm in CPU time (the exact map with its\n"
+              "index built and its rays unprojected, against the floor's two casts):\n");
+  last.clear();
+  for (const Row& r : rows) {
+    if (last == r.shape + r.size || r.kind != MapOptions::Mode::exact) continue;
+    last = r.shape + r.size;
+    const double cold = r.index_ms + r.first_ms, floor = r.emb_build_ms + r.emb_ms;
+    std::printf("%-6s %-9s index %7.1f + map %7.1f (unproject %7.1f) = %7.1f ms; floor BVH %6.1f + casts %6.1f = %6.1f ms; "
+                "%5.2fx (%5.2fx without unprojection); CPU warm %7.1f / casts %7.1f ms = %5.2fx\n",
+                r.shape.c_str(), r.size.c_str(), r.index_ms, r.first_ms, r.unproject_ms, cold, r.emb_build_ms, r.emb_ms,
+                floor, cold / floor, (cold - r.unproject_ms) / floor, r.cpu_ms, r.emb_cpu_ms, r.cpu_ms / r.emb_cpu_ms);
   }
 }
 
@@ -255,6 +288,7 @@ Run add_bench_map(CLI::App& app) {
     std::string chart = "auto";
     int repeat = 3;
     bool fresh_memory = false, exact_reasons = false;
+    std::string export_dir;
   };
   auto o = std::make_shared<Opts>();
   CLI::App* sub = app.add_subcommand(
@@ -278,6 +312,9 @@ Run add_bench_map(CLI::App& app) {
   sub->add_option("--repeat", o->repeat, "Timed runs per case; the best is reported")->check(CLI::Range(1, 100))->capture_default_str();
   sub->add_flag("--exact-reasons", o->exact_reasons,
                 "Grid/adaptive maps resolve boundaries between two invalid reasons too (MapOptions::exact_reasons)");
+  sub->add_option("--export", o->export_dir,
+                  "Write each part as DIR/SHAPE.obj (contact group 'contact') and each camera with the part's pose as "
+                  "DIR/SHAPE_WxH.cameramodel, and print the `clearfit map` command that maps them (whole-process timing)");
   sub->add_flag("--fresh-memory", o->fresh_memory,
                 "Let freed memory go back to the OS (glibc default): every map then pays for first touches of its "
                 "arrays, ~6 ms/MB on some VMs");
@@ -308,12 +345,16 @@ Run add_bench_map(CLI::App& app) {
       for (const Size& size : sizes) {
         const CameraModel camera = bench::make_camera(size.w, size.h);
         const Rigid3 pose = bench::frame_part(scene->mesh, camera);
+        if (!o->export_dir.empty()) export_part(o->export_dir, *scene, camera, pose, size.label());
         MapOptions exact_opt;
         const RefractionMap exact = compute_refraction_map(scene->trace(), camera, pose, exact_opt);
         const RayGrid rays = unproject_image(camera, 1);
         const bench::Floor fl = bench::measure_floor(*scene, rays, pose, exact, exact_opt.indices, o->repeat + 1);
+        const bench::EmbreeFloor emb =
+            bench::measure_embree_floor(scene->mesh, rays, pose, exact, exact_opt.indices, o->repeat + 1);
         std::cerr << "bench: " << shape << " " << size.label() << ": floor " << fl.ms << " ms (" << fl.rays1 << " + "
-                  << fl.rays2 << " rays), coverage " << 100 * exact.stats.coverage << " %\n";
+                  << fl.rays2 << " rays), Embree floor BVH " << emb.build_ms << " + casts " << emb.cast_ms << " ms ("
+                  << emb.rays1 << " + " << emb.rays2 << " rays), coverage " << 100 * exact.stats.coverage << " %\n";
         double exact_ms = 0, exact_cpu_ms = 0;
         const std::size_t first_row = rows.size();
         for (const ModeSpec& m : modes) {
@@ -347,6 +388,10 @@ Run add_bench_map(CLI::App& app) {
           row.trace_ms = best.stats.trace_ms;
           row.floor_ms = fl.ms;
           row.floor_recast_ms = fl.recast_ms;
+          row.emb_ms = emb.cast_ms;
+          row.emb_build_ms = emb.build_ms;
+          row.emb_cpu_ms = emb.cpu_ms;
+          row.index_ms = scene->index_ms;
           row.cpu_ms = best_cpu;
           row.floor_cpu_ms = fl.cpu_ms;
           row.first_ms = exact.stats.total_ms;
@@ -373,6 +418,8 @@ Run add_bench_map(CLI::App& app) {
     std::printf("# refraction map, best of %d runs per case (wall clock ms, all threads)%s, chart %s\n"
                 "# xfloor = time / floor (2 batched ray casts per traced pixel, the second skipping the entry face);\n"
                 "#   xfl_rc = time / the floor with Embree's re-cast of refracted rays that re-find their entry face\n"
+                "# emb_ms = plain Embree floor's two rtcIntersect16 casts per pixel (4x4 tiles, all cores, BVH prebuilt\n"
+                "#   like the maps' index); xemb = time / emb_ms\n"
                 "# speed = exact time / time; cpu_xf, cpu_sp: the same ratios in process CPU time (all threads,\n"
                 "#   best of the runs; steadier than wall time when other processes share the cores)\n"
                 "# first_ms = the first (exact) map of the shape and size, with the unprojection (unproj) of its\n"

@@ -59,6 +59,7 @@ struct Scene {
   std::unique_ptr<RayIndex> index;
   std::optional<Chart> chart;  ///< as `clearfit map` computes it (map.chart auto), unless asked for none
   double build_ms = 0;         ///< mesh + ray index
+  double index_ms = 0;         ///< the ray index alone
   double chart_ms = 0;
   TraceScene trace() const { return {&mesh, &contact, index.get(), chart ? &*chart : nullptr}; }
 };
@@ -97,7 +98,9 @@ inline std::unique_ptr<Scene> make_scene(const std::string& name, bool chart = t
   ContactSelector sel;
   sel.group = "contact";
   s->contact = select_contact(s->mesh, sel);
+  const auto ti = std::chrono::steady_clock::now();
   s->index = make_ray_index(s->mesh, RayBackend::embree);
+  s->index_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - ti).count();
   s->build_ms = std::chrono::duration<double, std::milli>(std::chrono::steady_clock::now() - t0).count();
   if (chart) {
     const auto t1 = std::chrono::steady_clock::now();

@@ -2,6 +2,8 @@
 // the per-pixel ray grid of an imager.
 #include "mrcal_api.hpp"
 
+#include <clearfit/camera/pixel_unprojector.hpp>
+
 #include <tbb/blocked_range.h>
 #include <tbb/enumerable_thread_specific.h>
 #include <tbb/parallel_for.h>
@@ -171,20 +173,6 @@ std::vector<double> coarse_nodes(int extent, int step) {
   return nodes;
 }
 
-std::vector<Cell> cells_for(int samples, int stride, const std::vector<double>& nodes, int step) {
-  std::vector<Cell> cells(samples);
-  const int last = static_cast<int>(nodes.size()) - 1;
-  for (int i = 0; i < samples; ++i) {
-    const double x = double(i) * stride;
-    Cell c;
-    c.k = std::min(static_cast<int>(x) / step, std::max(last - 1, 0));
-    c.k1 = std::min(c.k + 1, last);
-    c.t = c.k1 == c.k ? 0.0 : (x - nodes[c.k]) / (nodes[c.k1] - nodes[c.k]);
-    cells[i] = c;
-  }
-  return cells;
-}
-
 // One sample of the Newton route: the target pixel, the current ray v (not
 // unit), the tangent basis at the start, and the inverse 2x2 Jacobian.
 struct Sample {
@@ -290,7 +278,7 @@ RayGrid unproject_image(const CameraModel& model, int stride, const UnprojectIma
   if (model.width <= 0 || model.height <= 0)
     throw std::invalid_argument("unproject_image: the model has no imager size");
   const Lens lens = detail::lens_or_throw(model.lensmodel);
-  const double* intr = checked_intrinsics(model, lens);
+  checked_intrinsics(model, lens);
 
   RayGrid grid;
   grid.stride = stride;
@@ -299,66 +287,84 @@ RayGrid unproject_image(const CameraModel& model, int stride, const UnprojectIma
   grid.intrinsics_hash = model.intrinsics_hash();
   const std::size_t count = static_cast<std::size_t>(grid.width) * grid.height;
   grid.rays.resize(count);
-  UnprojectMethod method = options.method;
-  if (method == UnprojectMethod::automatic)
-    method = (lens.special != Lens::Special::none || !lens.has_gradients) ? UnprojectMethod::exact
-                                                                            : UnprojectMethod::coarse_grid_newton;
-  if (method == UnprojectMethod::coarse_grid_newton && !lens.has_gradients)
+  if (options.method == UnprojectMethod::coarse_grid_newton && !lens.has_gradients)
     throw std::invalid_argument("unproject_image: " + model.lensmodel + " has no gradients; use the exact method");
-  if (method == UnprojectMethod::exact) {
-    std::vector<Vec2> pixels(count);
-    for (int j = 0; j < grid.height; ++j)
-      for (int i = 0; i < grid.width; ++i) pixels[static_cast<std::size_t>(j) * grid.width + i] = grid.pixel(i, j);
-    model.unproject(pixels, grid.rays);
-    return grid;
-  }
+  std::vector<Vec2> pixels(count);
+  for (int j = 0; j < grid.height; ++j)
+    for (int i = 0; i < grid.width; ++i) pixels[static_cast<std::size_t>(j) * grid.width + i] = grid.pixel(i, j);
+  // exact: mrcal (or the closed form) everywhere; else the coarse grid and Newton per sample.
+  grid.exact_fallbacks = PixelUnprojector(model, options).unproject(pixels, grid.rays);
+  return grid;
+}
 
-  // Coarse grid, unprojected exactly.
-  const int step = options.coarse_step_px;
-  const auto xs = coarse_nodes(model.width, step), ys = coarse_nodes(model.height, step);
+PixelUnprojector::PixelUnprojector(const CameraModel& model, const UnprojectImageOptions& options)
+    : model_(model), options_(options) {
+  options.validate();
+  if (model.width <= 0 || model.height <= 0)
+    throw std::invalid_argument("PixelUnprojector: the model has no imager size");
+  const Lens lens = detail::lens_or_throw(model.lensmodel);
+  checked_intrinsics(model, lens);
+  newton_ = options.method != UnprojectMethod::exact && lens.special == Lens::Special::none && lens.has_gradients;
+  if (!newton_) return;
+  xs_ = coarse_nodes(model.width, options.coarse_step_px);
+  ys_ = coarse_nodes(model.height, options.coarse_step_px);
   std::vector<Vec2> nodes;
-  nodes.reserve(xs.size() * ys.size());
-  for (double y : ys)
-    for (double x : xs) nodes.emplace_back(x, y);
-  const std::vector<Vec3> coarse = model.unproject(nodes);
-  const auto cx = cells_for(grid.width, stride, xs, step), cy = cells_for(grid.height, stride, ys, step);
-  auto node = [&](int a, int b) -> const Vec3& { return coarse[static_cast<std::size_t>(b) * xs.size() + a]; };
+  nodes.reserve(xs_.size() * ys_.size());
+  for (double y : ys_)
+    for (double x : xs_) nodes.emplace_back(x, y);
+  coarse_ = model.unproject(nodes);
+}
 
+int PixelUnprojector::unproject(std::span<const Vec2> pixels, std::span<Vec3> rays) const {
+  if (pixels.size() != rays.size()) throw std::invalid_argument("PixelUnprojector::unproject: size mismatch");
+  if (!newton_) {
+    model_.unproject(pixels, rays);
+    return 0;
+  }
+  const Lens lens = detail::lens_or_throw(model_.lensmodel);
+  const double* intr = model_.intrinsics.data();
+  const int step = options_.coarse_step_px;
+  auto cell = [step](const std::vector<double>& nodes, double x) {
+    const int last = static_cast<int>(nodes.size()) - 1;
+    Cell c;
+    c.k = std::clamp(static_cast<int>(std::floor(x)) / step, 0, std::max(last - 1, 0));
+    c.k1 = std::min(c.k + 1, last);
+    c.t = c.k1 == c.k ? 0.0 : std::clamp((x - nodes[c.k]) / (nodes[c.k1] - nodes[c.k]), 0.0, 1.0);
+    return c;
+  };
+  auto node = [&](int a, int b) -> const Vec3& { return coarse_[static_cast<std::size_t>(b) * xs_.size() + a]; };
   std::vector<std::size_t> exact;
   std::mutex exact_mutex;
   tbb::enumerable_thread_specific<Scratch> scratch;
-  const std::size_t rows_per_block = std::max<std::size_t>(1, 1024 / grid.width);
-  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, grid.height, rows_per_block), [&](const auto& r) {
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, pixels.size(), 1024), [&](const auto& r) {
     Scratch& s = scratch.local();
-    s.samples.resize(r.size() * grid.width);
-    for (std::size_t j = r.begin(); j < r.end(); ++j) {
-      const Cell& b = cy[j];
-      for (int i = 0; i < grid.width; ++i) {
-        const Cell& a = cx[i];
-        Sample& x = s.samples[(j - r.begin()) * grid.width + i];
-        x.target = grid.pixel(i, static_cast<int>(j));
-        x.v = ((1 - a.t) * (1 - b.t) * node(a.k, b.k) + a.t * (1 - b.t) * node(a.k1, b.k) +
-               (1 - a.t) * b.t * node(a.k, b.k1) + a.t * b.t * node(a.k1, b.k1))
-                  .normalized();  // NaN corners stay NaN
+    s.samples.resize(r.size());
+    for (std::size_t i = r.begin(); i < r.end(); ++i) {
+      const Vec2& q = pixels[i];
+      Sample& x = s.samples[i - r.begin()];
+      x.target = q;
+      if (!q.allFinite()) {
+        x.v = Vec3::Constant(kNaN);  // refine_block hands it to the exact route
+        continue;
       }
+      const Cell a = cell(xs_, q.x()), b = cell(ys_, q.y());
+      x.v = ((1 - a.t) * (1 - b.t) * node(a.k, b.k) + a.t * (1 - b.t) * node(a.k1, b.k) +
+             (1 - a.t) * b.t * node(a.k, b.k1) + a.t * b.t * node(a.k1, b.k1))
+                .normalized();  // NaN corners stay NaN
     }
     std::vector<std::size_t> mine;
-    refine_block(lens, intr, options, s, grid.rays, r.begin() * grid.width, mine);
+    refine_block(lens, intr, options_, s, rays, r.begin(), mine);
     if (!mine.empty()) {
       std::lock_guard lock(exact_mutex);
       exact.insert(exact.end(), mine.begin(), mine.end());
     }
   });
-
-  if (!exact.empty()) {
-    std::vector<Vec2> px(exact.size());
-    for (std::size_t k = 0; k < exact.size(); ++k)
-      px[k] = grid.pixel(static_cast<int>(exact[k] % grid.width), static_cast<int>(exact[k] / grid.width));
-    const auto rays = model.unproject(px);
-    for (std::size_t k = 0; k < exact.size(); ++k) grid.rays[exact[k]] = rays[k];
-  }
-  grid.exact_fallbacks = static_cast<int>(exact.size());
-  return grid;
+  if (exact.empty()) return 0;
+  std::vector<Vec2> px(exact.size());
+  for (std::size_t k = 0; k < exact.size(); ++k) px[k] = pixels[exact[k]];
+  const std::vector<Vec3> again = model_.unproject(px);
+  for (std::size_t k = 0; k < exact.size(); ++k) rays[exact[k]] = again[k];
+  return static_cast<int>(exact.size());
 }
 
 }  // namespace clearfit

@@ -32,7 +32,7 @@ void CameraRays::fill(const std::vector<std::uint32_t>& missing) {
   std::vector<Vec2> q(missing.size());
   for (std::size_t i = 0; i < missing.size(); ++i) q[i] = Vec2(missing[i] % camera_.width, missing[i] / camera_.width);
   std::vector<Vec3> r(missing.size());
-  camera_.unproject(q, r);
+  unprojector_.unproject(q, r);
   for (std::size_t i = 0; i < missing.size(); ++i) {
     rays_[missing[i]] = r[i].allFinite() ? Vec3(r[i].normalized()) : Vec3::Zero();
     known_[missing[i]] = 1;

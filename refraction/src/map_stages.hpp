@@ -8,6 +8,7 @@
 //               (trace_exact, map_exact.cpp) or by the quadtree of
 //               interpolated cells with its boundary resolver (refine_quadtree,
 //               quadtree.hpp).
+#include <clearfit/camera/pixel_unprojector.hpp>
 #include <clearfit/refraction/map.hpp>
 
 #include <array>
@@ -41,7 +42,8 @@ constexpr float fnan = std::numeric_limits<float>::quiet_NaN();
 class CameraRays {
  public:
   explicit CameraRays(const CameraModel& camera)
-      : camera_(camera), rays_(static_cast<std::size_t>(camera.width) * camera.height), known_(rays_.size(), 0) {}
+      : camera_(camera), unprojector_(camera), rays_(static_cast<std::size_t>(camera.width) * camera.height),
+        known_(rays_.size(), 0) {}
   /// Unprojects those of `pixels` (pixel indices) not unprojected before.
   /// Afterwards ray(p) of each of them may be read from any thread.
   void ensure(std::span<const std::uint32_t> pixels);
@@ -54,6 +56,7 @@ class CameraRays {
   void fill(const std::vector<std::uint32_t>& missing);
   std::mutex mutex_;
   CameraModel camera_;
+  PixelUnprojector unprojector_;  // coarse grid + Newton: about 4x less CPU than mrcal_unproject per pixel
   std::vector<Vec3> rays_;
   std::vector<char> known_;
 };
