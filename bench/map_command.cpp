@@ -178,6 +178,23 @@ void print_table(const std::vector<Row>& rows) {
   }
 }
 
+// The table's legend: what each column means.
+void print_legend(int repeat, bool fresh_memory, const std::string& chart) {
+  std::printf("# refraction map, best of %d runs per case (wall clock ms, all threads)%s, chart %s\n"
+              "# xfloor = time / floor (2 batched ray casts per traced pixel, the second skipping the entry face);\n"
+              "#   xfl_rc = time / the floor with Embree's re-cast of refracted rays that re-find their entry face\n"
+              "# emb_ms = plain Embree floor's two rtcIntersect16 casts per pixel (4x4 tiles, all cores, BVH prebuilt\n"
+              "#   like the maps' index); xemb = time / emb_ms\n"
+              "# speed = exact time / time; cpu_xf, cpu_sp: the same ratios in process CPU time (all threads,\n"
+              "#   best of the runs; steadier than wall time when other processes share the cores)\n"
+              "# first_ms = the first (exact) map of the shape and size, with the unprojection (unproj) of its\n"
+              "#   pixels; the later maps reuse the cached rays\n"
+              "# errors: |skin point - exact| over pixels valid in both; vdiff = pixels valid in only one;\n"
+              "#   rdiff = pixels invalid in both for different reasons (adaptive/grid: nearest node's reason where two\n"
+              "#   invalid reasons meet)\n",
+              repeat, fresh_memory ? ", fresh memory" : "", chart.c_str());
+}
+
 // Log-log plot of time (ms) against the p99 error (µm), one colour per
 // shape/size; squares exact (drawn at the left edge: error 0), circles grid,
 // triangles adaptive; a dash at the left edge marks each series' floor.
@@ -280,6 +297,22 @@ void dump_map(const RefractionMap& m, const std::filesystem::path& path) {
 }
 
 }  // namespace
+
+// The CSV and the plot, both rendered before either is written.
+void write_outputs(const std::vector<Row>& rows, int repeat, const std::string& csv_path, const std::string& plot_path) {
+  const std::string csv = csv_text(rows, repeat);
+  const cv::Mat img = plot_path.empty() ? cv::Mat() : plot(rows);
+  if (!csv_path.empty()) {
+    write_file_atomically(csv_path, csv);
+    std::cout << "wrote " << csv_path << "\n";
+  }
+  if (!plot_path.empty()) {
+    write_path_atomically(plot_path, [&](const std::filesystem::path& tmp) {
+      if (!cv::imwrite(tmp.string(), img)) throw std::runtime_error("cv::imwrite failed");
+    });
+    std::cout << "wrote " << plot_path << "\n";
+  }
+}
 
 Run add_bench_map(CLI::App& app) {
   struct Opts {
@@ -415,33 +448,9 @@ Run add_bench_map(CLI::App& app) {
         for (std::size_t k = first_row; k < rows.size(); ++k) rows[k].exact_ms = exact_ms, rows[k].exact_cpu_ms = exact_cpu_ms;
       }
     }
-    std::printf("# refraction map, best of %d runs per case (wall clock ms, all threads)%s, chart %s\n"
-                "# xfloor = time / floor (2 batched ray casts per traced pixel, the second skipping the entry face);\n"
-                "#   xfl_rc = time / the floor with Embree's re-cast of refracted rays that re-find their entry face\n"
-                "# emb_ms = plain Embree floor's two rtcIntersect16 casts per pixel (4x4 tiles, all cores, BVH prebuilt\n"
-                "#   like the maps' index); xemb = time / emb_ms\n"
-                "# speed = exact time / time; cpu_xf, cpu_sp: the same ratios in process CPU time (all threads,\n"
-                "#   best of the runs; steadier than wall time when other processes share the cores)\n"
-                "# first_ms = the first (exact) map of the shape and size, with the unprojection (unproj) of its\n"
-                "#   pixels; the later maps reuse the cached rays\n"
-                "# errors: |skin point - exact| over pixels valid in both; vdiff = pixels valid in only one;\n"
-                "#   rdiff = pixels invalid in both for different reasons (adaptive/grid: nearest node's reason where two\n"
-                "#   invalid reasons meet)\n",
-                o->repeat, o->fresh_memory ? ", fresh memory" : "", o->chart.c_str());
+    print_legend(o->repeat, o->fresh_memory, o->chart);
     print_table(rows);
-    // Both outputs are rendered before either is written.
-    const std::string csv = csv_text(rows, o->repeat);
-    const cv::Mat img = o->plot.empty() ? cv::Mat() : plot(rows);
-    if (!o->csv.empty()) {
-      write_file_atomically(o->csv, csv);
-      std::cout << "wrote " << o->csv << "\n";
-    }
-    if (!o->plot.empty()) {
-      write_path_atomically(o->plot, [&](const std::filesystem::path& tmp) {
-        if (!cv::imwrite(tmp.string(), img)) throw std::runtime_error("cv::imwrite failed");
-      });
-      std::cout << "wrote " << o->plot << "\n";
-    }
+    write_outputs(rows, o->repeat, o->csv, o->plot);
     return 0;
   };
 }
