@@ -148,11 +148,16 @@ class CliTest : public ::testing::Test {
   /// mentioning every string in `must_name`, and no file added to or changed
   /// in the working folder (no output, no temporary file left behind).
   void expect_input_error(const std::vector<std::string>& args, const std::vector<std::string>& must_name) {
-    const auto before = listing(work());
-    const RunResult r = run(args);
+    expect_input_error_in(work(), root_ / "capture", args, must_name);
+  }
+  /// The same in the folder `dir` (output captured in `capture`): for tests that run cases side by side.
+  static void expect_input_error_in(const fs::path& dir, const fs::path& capture, const std::vector<std::string>& args,
+                                    const std::vector<std::string>& must_name) {
+    const auto before = listing(dir);
+    const RunResult r = run_clearfit(args, dir, capture);
     EXPECT_EQ(r.exit_code, 2) << r;
     for (const auto& s : must_name) EXPECT_NE(r.err.find(s), std::string::npos) << "stderr should name '" << s << "'\n" << r;
-    EXPECT_EQ(listing(work()), before) << "files were added or removed by a failed run\n" << r;
+    EXPECT_EQ(listing(dir), before) << "files were added or removed by a failed run\n" << r;
   }
 
  private:
