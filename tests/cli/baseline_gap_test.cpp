@@ -14,6 +14,7 @@
 #include <Eigen/Core>
 
 #include "cli_support.hpp"
+#include "shared_fixture.hpp"
 
 namespace clearfit::cli_test {
 namespace {
@@ -33,33 +34,45 @@ class BaselineGapCli : public CliTest {
   }
   static void TearDownTestSuite() { fs::remove_all(dir()); }
 
-  /// Renders the wristband (two hotspots) with `baseline` (simulation.baseline keys) into dir()/name.
-  static fs::path render(const std::string& name, const std::string& baseline, bool presses = false, const std::string& skin = "") {
-    write_text(dir() / (name + ".yaml"),
-               "mesh: " + (kWristband / "wristband.obj").string() + "\ncontact: {group: contact}\ncamera: " +
-                   (kWristband / "camera.cameramodel").string() + "\nmap: {mode: adaptive}\n"
-                   "simulation:\n  seed: 31\n  format: huffyuv\n  scale: 0.25\n"
-                   "  timeline: {fps: 30, baseline_s: 1.5, press_s: 2}\n  skin: {tone: light" + skin + "}\n"
-                   "  baseline: " + baseline + "\n"
-                   "  pressure:\n    texel_mm: 0.1\n    sources:\n"
-                   "      - {name: a, type: gaussian, center_part_mm: [-6, 3, 30], peak_kpa: 14, sigma_mm: 1.6}\n"
-                   "      - {name: b, type: gaussian, center_part_mm: [6, -3, 30], peak_kpa: 10, sigma_mm: 1.2}\n"
-                   "  presses: {diameters_mm: [3], levels: 9, repetitions: 3}\n");
+  /// The simulation scene of the wristband (two hotspots) with `baseline` (simulation.baseline keys).
+  static std::string simulation(const std::string& baseline, const std::string& skin) {
+    return "mesh: " + (kWristband / "wristband.obj").string() + "\ncontact: {group: contact}\ncamera: " +
+           (kWristband / "camera.cameramodel").string() + "\nmap: {mode: adaptive}\n"
+           "simulation:\n  seed: 31\n  format: huffyuv\n  scale: 0.25\n"
+           "  timeline: {fps: 30, baseline_s: 1.5, press_s: 2}\n  skin: {tone: light" + skin + "}\n"
+           "  baseline: " + baseline + "\n"
+           "  pressure:\n    texel_mm: 0.1\n    sources:\n"
+           "      - {name: a, type: gaussian, center_part_mm: [-6, 3, 30], peak_kpa: 14, sigma_mm: 1.6}\n"
+           "      - {name: b, type: gaussian, center_part_mm: [6, -3, 30], peak_kpa: 10, sigma_mm: 1.2}\n"
+           "  presses: {diameters_mm: [3], levels: 9, repetitions: 3}\n";
+  }
+  /// Renders `yaml` into d/name.
+  static fs::path render_in(const fs::path& d, const std::string& name, const std::string& yaml, bool presses) {
+    write_text(d / (name + ".yaml"), yaml);
     std::vector<std::string> args{"simulate", name + ".yaml", "--out", name, "--quiet", "--no-cache"};
     if (!presses) args.push_back("--no-presses");
-    const RunResult sim = run_clearfit(args, dir(), dir(), 300);
+    const RunResult sim = run_clearfit(args, d, d, 300);
     if (sim.exit_code != 0) throw std::runtime_error("simulate failed:\n" + sim.err);
-    return dir() / name;
+    return d / name;
   }
-  /// The wearer's calibration (from simulated presses), made once.
+  /// Renders the wristband with `baseline` (simulation.baseline keys) into dir()/name.
+  static fs::path render(const std::string& name, const std::string& baseline, bool presses = false, const std::string& skin = "") {
+    return render_in(dir(), name, simulation(baseline, skin), presses);
+  }
+  /// The wearer's calibration (from simulated presses, held 2.0 mm), made once for every test process
+  /// (shared_fixture.hpp); its captures beside it.
   static fs::path calibration() {
     static const fs::path c = [] {
-      const fs::path caps = render("held2", "{part: held, gap_mm: 2.0}", true);
-      const RunResult cal = run_clearfit({"calibrate-pressure", "--presses", "held2/presses.csv", "--person", "wearer-1", "--camera",
-                                          "held2/camera.cameramodel", "--out", "held2/calibration.json"},
-                                         dir(), dir(), 60);
-      if (cal.exit_code != 0) throw std::runtime_error("calibrate-pressure failed:\n" + cal.err);
-      return caps / "calibration.json";
+      const std::string yaml = simulation("{part: held, gap_mm: 2.0}", "");
+      const fs::path d = shared_fixture("baseline-gap-held2", yaml, {kWristband / "wristband.obj", kWristband / "camera.cameramodel"},
+                                        [&](const fs::path& into) {
+        render_in(into, "held2", yaml, true);
+        const RunResult cal = run_clearfit({"calibrate-pressure", "--presses", "held2/presses.csv", "--person", "wearer-1", "--camera",
+                                            "held2/camera.cameramodel", "--out", "held2/calibration.json"},
+                                           into, into, 60);
+        if (cal.exit_code != 0) throw std::runtime_error("calibrate-pressure failed:\n" + cal.err);
+      });
+      return d / "held2" / "calibration.json";
     }();
     return c;
   }
