@@ -54,6 +54,23 @@ double grid_inconsistency(const BoardObservation& v, const CalibrationGrid& g) {
   return triples ? double(bad) / triples : 0.0;
 }
 
+// Median distance (pixels) between neighbouring corners of a row or column; 0 without any.
+double median_corner_spacing(const BoardObservation& v, const CalibrationGrid& g) {
+  std::vector<double> d;
+  for (int i = 0; i < g.height; ++i)
+    for (int j = 0; j < g.width; ++j) {
+      const Eigen::Vector3d& a = v.corners[static_cast<std::size_t>(i) * g.width + j];
+      if (!present(a)) continue;
+      if (j + 1 < g.width && present(v.corners[static_cast<std::size_t>(i) * g.width + j + 1]))
+        d.push_back((v.corners[static_cast<std::size_t>(i) * g.width + j + 1] - a).head<2>().norm());
+      if (i + 1 < g.height && present(v.corners[static_cast<std::size_t>(i + 1) * g.width + j]))
+        d.push_back((v.corners[static_cast<std::size_t>(i + 1) * g.width + j] - a).head<2>().norm());
+    }
+  if (d.empty()) return 0;
+  std::nth_element(d.begin(), d.begin() + d.size() / 2, d.end());
+  return d[d.size() / 2];
+}
+
 Eigen::Vector3d board_point(const CalibrationGrid& g, int i, int j) {
   return {j * g.spacing_mm, i * g.spacing_mm, 0};
 }
@@ -267,6 +284,13 @@ UsableViews usable_views(const std::vector<BoardObservation>& views, const Calib
       continue;
     }
     const double bad = grid_inconsistency(v, grid);
+    const double spacing = median_corner_spacing(v, grid);
+    if (bad > options.max_grid_inconsistency && spacing < 4)
+      throw InputError(v.image, "corners",
+                       "are only " + significant_digits(spacing, 2) +
+                           " px apart (the median between neighbours): the board is too small or too far away in "
+                           "this view for its corners to be measured",
+                       "bring the board closer (its corners at least 10 px apart) or leave this view out");
     if (bad > options.max_grid_inconsistency)
       throw InputError(
           v.image, "corners",
@@ -520,6 +544,39 @@ double calibration_warnings(CalibrationResult& res) {
   return median_distance;
 }
 
+/// Refuses a solve the views cannot determine: fewer than min_views distinct board poses (a view
+/// given twice, or a still board filmed twice, adds nothing), or a focal length no lens has (under a
+/// twentieth of the imager's larger side, a field of view far beyond 180 degrees), which is where the
+/// optimiser drifts when every board faces the camera at one distance.
+void check_determined(const CalibrationResult& res, const CalibrationOptions& options, int W, int H) {
+  std::vector<const CalibrationResult::View*> distinct;
+  std::string repeat;
+  for (const auto& v : res.views) {
+    if (!v.used) continue;
+    const auto same = std::find_if(distinct.begin(), distinct.end(), [&](const CalibrationResult::View* d) {
+      const Rigid3 rel = d->cam_from_board.inverse() * v.cam_from_board;
+      return rodrigues_from_rotation(rel.rotation).norm() < 1e-3 && rel.translation.norm() < 1e-3 * v.distance_mm;
+    });
+    if (same == distinct.end()) distinct.push_back(&v);
+    else if (repeat.empty()) repeat = " (" + v.image + " shows the board where " + (*same)->image + " does)";
+  }
+  if (static_cast<int>(distinct.size()) < options.min_views)
+    throw InputError("", "views",
+                     "show the board in only " + std::to_string(distinct.size()) + " distinct pose(s)" + repeat +
+                         "; at least " + std::to_string(options.min_views) + " are needed",
+                     "move the board (or the camera) between the images: tilted, at several distances, covering the whole image");
+  const double f = std::min(res.model.intrinsics[0], res.model.intrinsics[1]);
+  if (!(f >= std::max(W, H) / 20.0)) {
+    std::string why;
+    for (const std::string& w : res.warnings)
+      if (w.find("one distance") != std::string::npos || w.find("faces the camera") != std::string::npos) why += "; " + w;
+    throw InputError("", "views",
+                     "do not determine the focal length: the solve gave " + significant_digits(f, 3) + " px for a " +
+                         std::to_string(W) + " x " + std::to_string(H) + " imager (a field of view beyond 180 degrees)" + why,
+                     "add views with the board tilted 30-45 degrees, at several distances, reaching the image corners");
+  }
+}
+
 /// The projection uncertainty (mrcal's method): the state covariance through dq/db at cell centres.
 void projection_uncertainty(const detail::BoardProblem& problem, detail::Selection usel, const CalibrationOptions& options,
                             double median_distance, int W, int H, CalibrationResult& res) {
@@ -637,6 +694,7 @@ CalibrationResult calibrate_camera(const std::vector<BoardObservation>& views, c
   res.solve_seconds = seconds_since(t0);
   collect_results(views, grid, pp, fs.output, options, W, H, res);
   const double median_distance = calibration_warnings(res);
+  check_determined(res, options, W, H);
   if (options.compute_uncertainty) projection_uncertainty(pp.problem, fs.selection, options, median_distance, W, H, res);
   return res;
 }

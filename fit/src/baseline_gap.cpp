@@ -53,6 +53,15 @@ struct Samples {
   int blocks = 0;
 };
 
+/// True when the finite values are all one value (or there are none): a capture without any skin
+/// texture, e.g. saturated or black where it sees the skin.
+bool uniform(const std::vector<float>& values) {
+  float lo = std::numeric_limits<float>::infinity(), hi = -lo;
+  for (float v : values)
+    if (std::isfinite(v)) lo = std::min(lo, v), hi = std::max(hi, v);
+  return !(hi > lo);
+}
+
 /// Chart uv of each sample at one gap (NaN where the baseline map is invalid).
 std::vector<Vec2> uv_at(const BaselineRays& rays, const Samples& s, double gap) { return rays.chart_uv(gap, s.ray); }
 
@@ -296,7 +305,11 @@ GapEstimate estimate_gap(const BaselineRays& rays, const PhaseAverage& baseline,
   e.pixels = f.pixels;
   // Trustworthy?
   const std::string at = " (best texture correlation " + fmt(1 - cost[best], 3) + " at " + fmt(e.curve[best].first) + " mm)";
-  if (s.ray.size() < 100 || f.pixels < 100)
+  const char* blank = uniform(worn_green.value) ? "worn" : uniform(s.log_green) ? "not-worn" : nullptr;
+  if (blank)
+    e.problem = std::string("the ") + blank + " capture shows no skin texture at all: every pixel that sees the skin has the same "
+                "green value (a saturated, black or blank capture)";
+  else if (s.ray.size() < 100 || f.pixels < 100)
     e.problem = "too few baseline pixels see skin that the worn capture sees too (" + std::to_string(f.pixels) + ")";
   else if (best == last)
     e.problem = "the textures match best at the end of the searched range, " + fmt(o.max_mm) + " mm" + at;

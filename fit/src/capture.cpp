@@ -339,6 +339,12 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
   const CaptureInfo& info = sums.info;
   const std::string role = options.role.empty() ? "capture" : options.role;
   const cv::Rect roi = sums.roi;
+  const int min_side = MotionRegistration::min_image_side(options.registration);
+  if (options.register_motion && std::min(info.width, info.height) < min_side)
+    throw InputError(source, "frame size",
+                     std::to_string(info.width) + "x" + std::to_string(info.height) + " is too small to measure motion in (at least " +
+                         std::to_string(min_side) + " px on each side)",
+                     "film the captures with a camera of at least " + std::to_string(min_side) + " x " + std::to_string(min_side) + " px");
   MotionRegistration* const first_reference = first_registration(options, reference, cv::Size(info.width, info.height), roi);
   References refs(first_reference, options, cv::Size(info.width, info.height), roi);
   const Vec2 roi_centre(roi.x + 0.5 * roi.width, roi.y + 0.5 * roi.height);

@@ -13,6 +13,7 @@
 #include <chrono>
 #include <cmath>
 #include <ctime>
+#include <limits>
 #include <numbers>
 #include <numeric>
 #include <sstream>
@@ -407,6 +408,18 @@ LinearFit linear_fit(const FitData& d) {
   const double ssr = (Y - X * ab).squaredNorm();
   const Eigen::Matrix2d cov = ssr / std::max(1, n - 2) * XtX.inverse();
   const LinearFit f{ab[0], ab[1], std::sqrt(cov(0, 0)), std::sqrt(cov(1, 1)), d.ss_tot > 0 ? 1 - ssr / d.ss_tot : kNaN};
+  // A signal that is the same at every press (to rounding) has no slope to speak of, whatever its sign.
+  double y_abs = 0;
+  for (double v : d.y) y_abs = std::max(y_abs, std::abs(v));
+  if (std::sqrt(d.ss_tot / n) <= 64 * std::numeric_limits<double>::epsilon() * y_abs)
+    throw InputError(d.src, "signal", "is the same (" + significant_digits(d.y[0], 6) + ") at every press: nothing blanched",
+                     "check that the signal column holds each press's measured change, and that the presses reached the skin");
+  // Within two standard errors of flat: the signal does not rise beyond its noise (nothing to calibrate).
+  if (f.slope_per_kpa > 0 && f.slope_per_kpa < 2 * f.se_slope)
+    throw InputError(d.src, "signal",
+                     "does not rise with pressure beyond its noise (linear slope " + significant_digits(f.slope_per_kpa, 3) +
+                         " +- " + significant_digits(f.se_slope, 3) + " per kPa): nothing measurable blanched",
+                     "check the signal column and that the presses reached the skin; press harder or longer");
   if (!(f.slope_per_kpa > 0))
     throw InputError(d.src, "signal",
                      "does not rise with pressure (linear slope " + significant_digits(f.slope_per_kpa, 3) +

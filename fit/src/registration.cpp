@@ -142,7 +142,7 @@ MotionRegistration::MotionRegistration(cv::Size image, const cv::Rect& roi, cons
   int p = std::min({options_.patch_size, roi_.width, roi_.height, image.width - 2 * edge, image.height - 2 * edge});
   p = std::max(16, p & ~1);
   if (p + 2 * edge > image.width || p + 2 * edge > image.height)
-    throw std::invalid_argument("MotionRegistration: the image is smaller than " + std::to_string(16 + 2 * edge) + " px");
+    throw std::invalid_argument("MotionRegistration: the image is smaller than " + std::to_string(min_image_side(options_)) + " px");
   if (!seen.empty() && (seen.type() != CV_8U || seen.size() != roi.size()))
     throw std::invalid_argument("MotionRegistration: the seen mask must be CV_8U of the roi's size");
   auto seen_fraction = [&](const cv::Rect& r) {

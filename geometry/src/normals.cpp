@@ -1,6 +1,8 @@
 #include <clearfit/geometry/normals.hpp>
 
+#include <algorithm>
 #include <cmath>
+#include <limits>
 #include <numbers>
 #include <numeric>
 #include <stdexcept>
@@ -26,6 +28,29 @@ int find(std::vector<int>& parent, int i) {
   while (parent[i] != i) i = parent[i] = parent[parent[i]];
   return i;
 }
+// Unit normal of face f, or zero when the face is degenerate to rounding: its
+// cross product no larger than the error of computing it (a few ulp of the
+// largest coordinate times the longest edge). A vertex computed on an edge in
+// floating point leaves such a "zero-area" triangle whose normal would
+// otherwise be a unit vector of either sign, with an interior angle of up to π
+// to weigh it by.
+Vec3 reliable_normal(const Mesh& m, int f) {
+  const Vec3 cross = m.face_cross(f);
+  double coord = 0, edge = 0;
+  for (int k = 0; k < 3; ++k) {
+    coord = std::max(coord, m.corner(f, k).cwiseAbs().maxCoeff());
+    edge = std::max(edge, (m.corner(f, (k + 1) % 3) - m.corner(f, k)).norm());
+  }
+  const double len = cross.norm();
+  return len > 64 * std::numeric_limits<double>::epsilon() * coord * edge ? Vec3(cross / len) : Vec3::Zero();
+}
+// True when faces fi and fj of a vertex's fan (corners ki and kj at the vertex) share an edge there.
+bool share_edge(const Mesh& mesh, int fi, int ki, int fj, int kj) {
+  const auto& ti = mesh.faces[fi];
+  const auto& tj = mesh.faces[fj];
+  return ti[(ki + 1) % 3] == tj[(kj + 2) % 3] || ti[(ki + 2) % 3] == tj[(kj + 1) % 3] ||
+         ti[(ki + 1) % 3] == tj[(kj + 1) % 3] || ti[(ki + 2) % 3] == tj[(kj + 2) % 3];
+}
 // Interior angle of face f at its corner k (radians).
 double corner_angle(const Mesh& m, int f, int k) {
   const Vec3 a = m.corner(f, (k + 1) % 3) - m.corner(f, k);
@@ -38,7 +63,7 @@ CornerNormals compute_corner_normals(const Mesh& mesh, const NormalOptions& opti
   options.validate();
   const int nf = mesh.num_faces(), nv = mesh.num_vertices();
   std::vector<Vec3> face_n(nf);
-  for (int f = 0; f < nf; ++f) face_n[f] = mesh.face_normal(f);
+  for (int f = 0; f < nf; ++f) face_n[f] = reliable_normal(mesh, f);
 
   // Vertex -> incident (face, corner) in CSR form.
   std::vector<int> start(nv + 1, 0);
@@ -65,15 +90,21 @@ CornerNormals compute_corner_normals(const Mesh& mesh, const NormalOptions& opti
       for (int j = i + 1; j < n; ++j) {
         const auto [fi, ki] = inc[b + i];
         const auto [fj, kj] = inc[b + j];
-        const auto& ti = mesh.faces[fi];
-        const auto& tj = mesh.faces[fj];
-        const bool share_edge = ti[(ki + 1) % 3] == tj[(kj + 2) % 3] || ti[(ki + 2) % 3] == tj[(kj + 1) % 3] ||
-                                ti[(ki + 1) % 3] == tj[(kj + 1) % 3] || ti[(ki + 2) % 3] == tj[(kj + 2) % 3];
-        if (!share_edge) continue;
-        const bool degenerate = face_n[fi].isZero() || face_n[fj].isZero();
-        if (degenerate || face_n[fi].dot(face_n[fj]) >= cos_crease - 1e-12)
-          parent[find(parent, i)] = find(parent, j);
+        if (face_n[fi].isZero() || face_n[fj].isZero() || !share_edge(mesh, fi, ki, fj, kj)) continue;
+        if (face_n[fi].dot(face_n[fj]) >= cos_crease - 1e-12) parent[find(parent, i)] = find(parent, j);
       }
+    // A degenerate face takes the normal of one neighbour across an edge at v, never bridging two
+    // groups: one lying along a crease would otherwise join both sides of it.
+    for (int i = 0; i < n; ++i) {
+      const auto [fi, ki] = inc[b + i];
+      if (!face_n[fi].isZero()) continue;
+      for (int j = 0; j < n; ++j) {
+        const auto [fj, kj] = inc[b + j];
+        if (face_n[fj].isZero() || !share_edge(mesh, fi, ki, fj, kj)) continue;
+        parent[i] = find(parent, j);
+        break;
+      }
+    }
     sum.assign(n, Vec3::Zero());
     for (int i = 0; i < n; ++i) {
       const auto [f, k] = inc[b + i];

@@ -185,6 +185,37 @@ TEST_F(Map, SlabWithCameraExtrinsicsOtherIndicesFlatNormals) {
   check_map_against_closed_form(work() / "m.npy", stats, {1.333, 1.55, 1.38});
 }
 
+// Numerical limits (issue 16, section 5): indices of refraction from 1.0001 to 3 on either side, and the
+// same slab given in micrometres and in metres, all follow the closed form.
+TEST_F(Map, ExtremeIndicesAndMeshUnitsMatchClosedForm) {
+  CameraModel cam = test_camera();
+  cam.cam_from_part = test_cam_from_part();
+  write_cameramodel(cam, work() / "cam.cameramodel");
+  for (const auto& [name, scale] : {std::pair{"slab_um.obj", 1e3}, std::pair{"slab_m.obj", 1e-3}}) {
+    Mesh m = shapes::slab(kSx, kSy, kThickness, 4);
+    for (Vec3& v : m.vertices) v *= scale;
+    save_mesh(m, work() / name);
+  }
+  struct Case {
+    std::string mesh, units;
+    optics::Indices n;
+  };
+  const Case cases[] = {{"slab.obj", "mm", {1.0, 1.0001, 1.4}}, {"slab.obj", "mm", {1.0, 3.0, 1.4}},
+                        {"slab.obj", "mm", {1.0, 1.0001, 3.0}}, {"slab.obj", "mm", {1.333, 1.0001, 1.0}},
+                        {"slab.obj", "mm", {1.0001, 3.0, 1.0001}}, {"slab_um.obj", "um", {1.0, 1.49, 1.4}},
+                        {"slab_m.obj", "m", {1.0, 1.49, 1.4}}};
+  for (const Case& c : cases) {
+    SCOPED_TRACE(c.mesh + " in " + c.units + ", indices " + std::to_string(c.n.n_medium) + " / " +
+                 std::to_string(c.n.n_part) + " / " + std::to_string(c.n.n_skin));
+    const RunResult r = run({"map", "--mesh", c.mesh, "--units", c.units, "--camera", "cam.cameramodel",
+                             "--contact-group", "contact", "--ior", std::to_string(c.n.n_part), "--medium-ior",
+                             std::to_string(c.n.n_medium), "--skin-ior", std::to_string(c.n.n_skin), "--out", "m.npy",
+                             "--stats", "s.json"});
+    ASSERT_EQ(r.exit_code, 0) << r;
+    check_map_against_closed_form(work() / "m.npy", json::parse(read_text(work() / "s.json")), c.n);
+  }
+}
+
 // The bundled wristband (a tessellated 100° band, r_in 32, r_out 34.5, 24 wide,
 // 96 segments) under a pinhole camera 80 mm above it: every valid point lies
 // on the inner facets, and the trace follows the exact cylinder to within the

@@ -3,6 +3,7 @@
 #include <clearfit/geometry/shapes.hpp>
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
 
 using namespace clearfit;
@@ -86,4 +87,37 @@ TEST(Normals, DegenerateFaceGetsNoNaN) {
   CornerNormals n = compute_corner_normals(m);
   for (const auto& c : n.corner)
     for (const Vec3& v : c) EXPECT_TRUE(v.allFinite());
+}
+
+TEST(Normals, ZeroAreaTriangleAlongACreaseDoesNotSmoothIt) {
+  // A top triangle of a box split at the midpoint p of its edge on the rim,
+  // closed by the zero-area triangle (a, b, p) that lies along the crease
+  // between the top and a side. It must neither join the top to the side nor
+  // lend a normal of either sign: every top corner keeps +z, every side corner
+  // its own normal. (Found by the numerical-limits sweep: such triangles tilted
+  // the top's normals by up to 45 degrees at the rim.)
+  for (double along : {0.5, 0.3}) {  // an exact midpoint, and a point computed with rounding
+    Mesh m = shapes::box({1, 1, 1});
+    const int top = static_cast<int>(std::find(m.groups.begin(), m.groups.end(), "top") - m.groups.begin());
+    const int f = static_cast<int>(std::find(m.face_group.begin(), m.face_group.end(), top) - m.face_group.begin());
+    int r = 0;  // rotate the corners so that (a, b) is the edge on the rim, not the diagonal
+    while (std::abs((0.5 * (m.corner(f, r) + m.corner(f, (r + 1) % 3))).head<2>().cwiseAbs().maxCoeff() - 0.5) > 1e-12) ++r;
+    const int a = m.faces[f][r], b = m.faces[f][(r + 1) % 3], c = m.faces[f][(r + 2) % 3];
+    m.vertices.push_back((1 - along) * m.vertices[a] + along * m.vertices[b]);
+    const int p = m.num_vertices() - 1;
+    m.faces[f] = {a, p, c};
+    for (const std::array<int, 3>& t : {std::array<int, 3>{p, b, c}, {a, b, p}}) {
+      m.faces.push_back(t);
+      m.face_group.push_back(top);
+      m.file_face.push_back(m.num_faces() - 1);
+    }
+    const CornerNormals n = compute_corner_normals(m);
+    for (int g = 0; g < m.num_faces(); ++g) {
+      const Vec3 own = m.face_normal(g);
+      if (m.face_area(g) < 1e-12) continue;  // the zero-area triangle itself
+      for (int k = 0; k < 3; ++k)
+        EXPECT_LT((n.corner[g][k] - own).norm(), 1e-12) << "along " << along << ", face " << g << " corner " << k << ": "
+                                                        << n.corner[g][k].transpose() << " vs " << own.transpose();
+    }
+  }
 }

@@ -7,7 +7,6 @@
 
 #include "../support/trace_part.hpp"
 
-#include <cstdlib>
 #include <random>
 
 using namespace clearfit;
@@ -15,11 +14,6 @@ using namespace clearfit;
 namespace {
 
 using Part = test::TracePart;
-
-double test_scale() {
-  const char* s = std::getenv("CLEARFIT_RAY_TEST_SCALE");
-  return s ? std::atof(s) : 1.0;
-}
 
 // Rays from random points above a dome or band towards random points of its
 // contact surface: mostly valid, with grazing, TIR and edge cases mixed in.
@@ -152,7 +146,7 @@ TEST(MapProperties, InvariantUnderScaleAndRigidMotion) {
 
 TEST(MapProperties, StressRandomPosesNoNaNEveryInvalidHasAReason) {
   // A million rays from random poses by default (CLEARFIT_RAY_TEST_SCALE scales it).
-  const int n = static_cast<int>(1'000'000 * test_scale());
+  const int n = static_cast<int>(1'000'000 * test::ray_test_scale());
   std::mt19937_64 rng(12345);
   std::printf("  seed 12345, %d rays\n", n);
   for (Mesh m : {shapes::spherical_shell(25, 27.5, 40, 16, 64), shapes::cylindrical_shell(30, 32.5, 200, 20, 64, 4)}) {

@@ -3,9 +3,17 @@
 // surface, and the default ray index.
 #include <clearfit/refraction/map.hpp>
 
+#include <cstdlib>
 #include <memory>
 
 namespace clearfit::test {
+
+/// The factor on the ray counts of the stress tests: $CLEARFIT_RAY_TEST_SCALE (default 1; 0.1 under
+/// the sanitizers, 10 and more in scripts/numerical-sweep.sh).
+inline double ray_test_scale() {
+  const char* s = std::getenv("CLEARFIT_RAY_TEST_SCALE");
+  return s ? std::atof(s) : 1.0;
+}
 
 struct TracePart {
   Mesh mesh;

@@ -128,8 +128,11 @@ struct CalibrationResult {
 
 /// Calibrates one camera from board views (see the file comment).
 /// Views with no corners are skipped (a note); a view whose corners disagree
-/// with the grid, mixed imager sizes, too few usable views, or a failed solve
-/// throw InputError naming the view. Warnings (returned, never printed): few
+/// with the grid, mixed imager sizes, too few usable views, views that show
+/// fewer distinct board poses than min_views (a view given twice), a solve
+/// the views cannot determine (a focal length under a twentieth of the
+/// imager's larger side: every board facing the camera at one distance) or a
+/// failed solve throw InputError naming the view. Warnings (returned, never printed): few
 /// views, all boards at about one distance (focal length and distance become
 /// ambiguous), all boards facing the camera, empty regions of the imager,
 /// a large RMS.

@@ -95,6 +95,9 @@ class MotionRegistration {
   /// `seen` (optional, CV_8U, roi size): the pixels that see the skin; each grid cell's patch is
   /// moved within its cell to see the most skin, and left out when less than 3/4 of it does.
   MotionRegistration(cv::Size image, const cv::Rect& roi, const RegistrationOptions& options, const cv::Mat& seen = {});
+  /// The smallest image side (pixels) the registration works on with these options: smaller
+  /// images make the constructor throw std::invalid_argument.
+  static int min_image_side(const RegistrationOptions& options) { return 16 + 2 * options.downsample * (kApron + 4); }
   bool has_reference() const { return frames_averaged_ > 0; }
   /// Starts the reference with `bgr` (its motion is the identity); drops any earlier one.
   void set_reference(const cv::Mat& bgr);

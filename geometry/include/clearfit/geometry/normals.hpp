@@ -17,7 +17,10 @@ struct NormalOptions {
 /// normals of the faces around that vertex that are reachable from f without
 /// crossing a crease (dihedral angle > crease_angle_deg) or a boundary, so the
 /// outer surface, the contact surface and the side walls each keep their own.
-/// Degenerate faces get their neighbours' normal, or zero if isolated.
+/// A degenerate face (zero area to rounding: its cross product within the
+/// error of computing it) takes one neighbour's normal across an edge, or
+/// zero if it has none; it never joins the faces on its two sides, so a
+/// zero-area triangle along a crease does not smooth the crease away.
 struct CornerNormals {
   std::vector<std::array<Vec3, 3>> corner;
   /// Interpolates the unit shading normal inside face f at barycentrics
