@@ -4,6 +4,8 @@
 #   scripts/bootstrap.sh test     install dependencies, build (Release), run the whole test suite (ctest)
 #   scripts/bootstrap.sh asan     same as test, in a separate AddressSanitizer + UBSan build (build-asan/)
 #   scripts/bootstrap.sh fuzz     install dependencies plus clang and libFuzzer's runtime, build every fuzz target (build-fuzz/)
+#   scripts/bootstrap.sh sanitize the readers under AddressSanitizer + UBSan (clang, build-sanitize/): the fuzz targets
+#                                 replay their seeds and regression inputs once, the readers' tests run (docs/fuzzing.md)
 #   scripts/bootstrap.sh deps     only install the dependencies
 # Idempotent and non-interactive. Needs root or sudo for apt-get.
 set -euo pipefail
@@ -87,6 +89,10 @@ case "${1:-}" in
     install_web
     build build-asan -DCLEARFIT_SANITIZE=ON -DCLEARFIT_BUILD_BENCHMARKS=OFF
     ASAN_OPTIONS=detect_leaks=1 CLEARFIT_RAY_TEST_SCALE=0.1 run_tests build-asan
+    ;;
+  sanitize)
+    install_deps "${FUZZ_PACKAGES[@]}"
+    scripts/sanitize-readers.sh
     ;;
   fuzz)
     install_deps "${FUZZ_PACKAGES[@]}"
