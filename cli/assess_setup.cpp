@@ -84,6 +84,7 @@ std::unique_ptr<Prepared> prepare(AssessOpts& o) {
   ao.min_hotspot_area_mm2 = as.min_hotspot_area_mm2;
   ao.glare = as.glare.options;
   ao.phase_registration = as.phase_registration.options;
+  ao.vignetting = as.vignetting.options;
   ao.timeseries = as.timeseries.options;
   ao.normalise_gains = as.normalise_exposure;
   p->sources = {cap.baseline, cap.worn, cap.both};

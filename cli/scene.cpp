@@ -301,6 +301,23 @@ void PhaseRegistrationSection::validate() const {
   }
 }
 
+void VignettingSection::bind(SceneFields& f) {
+  f.key("enabled", options.enabled, "--no-vignetting",
+        "Do not estimate the image's fall-off when the phases see the skin at different pixels (a held or absent baseline)");
+  f.key("max_abs", options.max_abs);
+  f.key("min_spread", options.min_spread);
+  f.key("stride_px", options.stride_px);
+  f.key("pressed_margin_mm", options.pressed_margin_mm);
+}
+
+void VignettingSection::validate() const {
+  try {
+    options.validate();
+  } catch (const std::invalid_argument& e) {
+    throw SceneRuleError("", e.what());
+  }
+}
+
 void TimeSeriesSection::bind(SceneFields& f) {
   f.key("enabled", options.enabled, "--no-timeseries", "Do not follow the worn phase over time (no timeline)");
   f.key("cell_px", options.cell_px, "--timeseries-cell-px", "Cell edge of the time series in the camera image, px");
@@ -321,6 +338,7 @@ void TimeSeriesSection::validate() const {
 void AssessSection::bind(SceneFields& f) {
   f.section("glare", glare);
   f.section("phase_registration", phase_registration);
+  f.section("vignetting", vignetting);
   f.section("timeseries", timeseries);
   f.key("normalise_exposure", normalise_exposure, "--no-exposure-normalisation",
         "Do not divide each 5-frame chunk by its exposure / white-balance / flicker gain");
@@ -351,6 +369,11 @@ void AssessSection::validate() const {
     phase_registration.validate();
   } catch (const SceneRuleError& e) {
     throw SceneRuleError("phase_registration", e.what());
+  }
+  try {
+    vignetting.validate();
+  } catch (const SceneRuleError& e) {
+    throw SceneRuleError("vignetting", e.what());
   }
   if (!(std::isfinite(smoothing_mm) && smoothing_mm >= 0)) rule_broken("smoothing_mm", smoothing_mm, ">= 0 mm");
   for (double t : thresholds_kpa)

@@ -4,6 +4,8 @@
 #include <clearfit/error.hpp>
 #include <clearfit/format.hpp>
 #include <clearfit/fit/assessment.hpp>
+
+#include "baseline_photometry.hpp"
 #include <cmath>
 #include <limits>
 #include <opencv2/imgproc.hpp>
@@ -61,6 +63,13 @@ cv::Mat seen_pixels(const RefractionMap& map, const cv::Rect& roi) {
     for (int x = 0; x < roi.width; ++x)
       if (map.status[map.index(roi.x + x, roi.y + y)] == PixelStatus::valid) seen.at<std::uint8_t>(y, x) = 255;
   return seen;
+}
+
+/// The fall-off between phases seen at different pixels: a refused estimate is worth a warning.
+void warn_vignetting(const VignettingEstimate& v, std::vector<std::string>& warnings) {
+  if (!v.estimated && v.problem.find("not vignetting") != std::string::npos)
+    warnings.push_back("the image's fall-off between the phases was not divided out: " + v.problem +
+                       " (the exposure or the light changed across the view between the phases?)");
 }
 
 /// Glare: refuses captures that are mostly glare; warns about what it masked.
@@ -209,20 +218,63 @@ ChartField position_sigma_total(const ChartField& pose, const ChartField& intrin
   return out;
 }
 
-/// The signal's σ: its noise, the intrinsics' term (intrinsics_term) and, where the pose is uncertain,
-/// |∇y|·σ_pos in quadrature (∇y by central differences on the chart, one-sided beside unseen texels).
-ChartField signal_sigma(const BlanchingSignal& signal, const ChartField& position_mm, const ChartField& intrinsics_signal) {
+/// Per texel, the blur's first-order effect on the signal: ½·(blur² + smoothing²)·∇²y
+/// (BlanchingOptions::skin_blur_mm). The signal reads the contact pressure blurred by the skin and by the
+/// feature's smoothing, which lowers a peak and raises a foot by this much. ∇²y by the 5-point stencil on
+/// y smoothed by a further curvature_smoothing_mm (normalised over the seen texels), so that the noise's
+/// Laplacian adds little; 0 where a neighbour is unseen.
+ChartField blur_effect(const BlanchingSignal& signal, const BlanchingOptions& o) {
+  const ChartGrid& g = signal.y.grid;
+  ChartField out{g, std::vector<float>(g.size(), 0.f)};
+  if (g.size() == 0) return out;
+  cv::Mat v(g.height, g.width, CV_32F, cv::Scalar(0)), w(g.height, g.width, CV_32F, cv::Scalar(0));
+  for (int j = 0; j < g.height; ++j)
+    for (int i = 0; i < g.width; ++i)
+      if (const float y = signal.y.value[g.index(i, j)]; std::isfinite(y)) v.at<float>(j, i) = y, w.at<float>(j, i) = 1;
+  const double s = o.curvature_smoothing_mm / g.texel_mm;
+  cv::GaussianBlur(v, v, cv::Size(), s, s, cv::BORDER_CONSTANT);
+  cv::GaussianBlur(w, w, cv::Size(), s, s, cv::BORDER_CONSTANT);
+  const double half_b2 = 0.5 * (o.skin_blur_mm * o.skin_blur_mm + o.smoothing_mm * o.smoothing_mm) / (g.texel_mm * g.texel_mm);
+  auto ys = [&](int i, int j) { return v.at<float>(j, i) / w.at<float>(j, i); };
+  for (int j = 1; j + 1 < g.height; ++j)
+    for (int i = 1; i + 1 < g.width; ++i) {
+      bool seen = true;
+      for (auto [di, dj] : {std::pair{0, 0}, {1, 0}, {-1, 0}, {0, 1}, {0, -1}}) seen = seen && std::isfinite(signal.y.value[g.index(i + di, j + dj)]);
+      if (!seen) continue;
+      const double lap = ys(i + 1, j) + ys(i - 1, j) + ys(i, j + 1) + ys(i, j - 1) - 4 * ys(i, j);
+      out.value[g.index(i, j)] = static_cast<float>(half_b2 * lap);
+    }
+  return out;
+}
+
+/// The signal the pressure is read from: y with the blur's first-order effect (blur_effect) undone.
+ChartField sharpened_signal(const ChartField& y, const ChartField& blur) {
+  ChartField out = y;
+  for (std::size_t k = 0; k < out.value.size() && k < blur.value.size(); ++k)
+    if (std::isfinite(out.value[k])) out.value[k] -= blur.value[k];
+  return out;
+}
+
+/// The signal's σ: its noise, the blur's first-order effect (blur_effect: the pressure undoes it, and its
+/// size stands for what the first order misses), the intrinsics' term (intrinsics_term) and, where the pose
+/// is uncertain, |∇y'|·σ_pos, in quadrature, with y' the sharpened signal the pressure is read from (∇ by
+/// central differences on the chart, one-sided beside unseen texels).
+ChartField signal_sigma(const BlanchingSignal& signal, const ChartField& position_mm, const ChartField& intrinsics_signal,
+                        const ChartField& blur) {
   ChartField out = signal.sigma_y;
+  for (std::size_t k = 0; k < out.value.size(); ++k)
+    if (std::isfinite(out.value[k])) out.value[k] = std::hypot(out.value[k], blur.value[k]);
   for (std::size_t k = 0; k < intrinsics_signal.value.size(); ++k)
     if (std::isfinite(out.value[k]) && std::isfinite(intrinsics_signal.value[k])) out.value[k] = std::hypot(out.value[k], intrinsics_signal.value[k]);
   if (position_mm.value.empty()) return out;
   const ChartGrid& g = signal.y.grid;
+  const ChartField sharpened = sharpened_signal(signal.y, blur);
   const auto& y = signal.y.value;
   for (int j = 0; j < g.height; ++j)
     for (int i = 0; i < g.width; ++i) {
       const auto k = g.index(i, j);
       if (!std::isfinite(y[k]) || !std::isfinite(position_mm.value[k])) continue;
-      const double gradient = gradient_norm(signal.y, i, j);
+      const double gradient = gradient_norm(sharpened, i, j);
       out.value[k] = static_cast<float>(std::hypot(static_cast<double>(out.value[k]), gradient * position_mm.value[k]));
     }
   return out;
@@ -242,26 +294,6 @@ void add_position_to_centres(std::vector<Hotspot>& hotspots, const std::vector<i
       h.centre_of_pressure_sigma_mm = std::sqrt(h.centre_of_pressure_sigma_mm * h.centre_of_pressure_sigma_mm + 2 * sum[h.id] / n[h.id]);
 }
 
-
-/// Per texel ln(T_worn / T_baseline): each map's Fresnel transmittance at the texel's pixel (bilinear).
-std::vector<float> log_transmittance_ratio(const RefractionMap& worn, const InverseMap& worn_inv, const RefractionMap& base,
-                                           const InverseMap& base_inv) {
-  auto on_chart = [](const RefractionMap& m, const InverseMap& inv) {
-    const cv::Mat t(m.height, m.width, CV_32F, const_cast<float*>(m.transmittance.data()));
-    cv::Mat mx(inv.height, inv.width, CV_32F, const_cast<float*>(inv.map_x.data()));
-    cv::Mat my(inv.height, inv.width, CV_32F, const_cast<float*>(inv.map_y.data()));
-    cv::Mat out;
-    cv::remap(t, out, mx, my, cv::INTER_LINEAR, cv::BORDER_CONSTANT, cv::Scalar(kNaN));
-    return out;
-  };
-  const cv::Mat tw = on_chart(worn, worn_inv), tb = on_chart(base, base_inv);
-  std::vector<float> r(worn_inv.valid.size(), kNaN);
-  for (std::size_t k = 0; k < r.size(); ++k) {
-    const float a = tw.at<float>(static_cast<int>(k)), b = tb.at<float>(static_cast<int>(k));
-    if (worn_inv.valid[k] && base_inv.valid[k] && a > 0 && b > 0) r[k] = std::log(a / b);
-  }
-  return r;
-}
 
 /// The baseline's own map at the given or estimated gap; fills a.baseline_geometry and its warnings.
 RefractionMap baseline_geometry(const AssessmentScene& scene, const PhaseAverage& base_avg, const PhaseAverage& worn_avg, Assessment& a,
@@ -299,52 +331,6 @@ RefractionMap baseline_geometry(const AssessmentScene& scene, const PhaseAverage
   RefractionMap m = scene.baseline_rays->map(r.gap_mm);
   r.pixels_seeing_skin = m.stats.by_status[0];
   return m;
-}
-
-/// The baseline average as the worn capture's geometry shows it, for comparing the phases pixel by
-/// pixel (the glare mask): a roi pixel that sees the skin in the worn map reads the baseline where
-/// the baseline's own map sees the same chart point; the others read it where they are.
-PhaseAverage in_worn_geometry(const PhaseAverage& base, const RefractionMap& worn, const InverseMap& base_inv) {
-  const cv::Rect roi = base.roi;
-  const float rx = static_cast<float>(base.residual_shift_px.x()), ry = static_cast<float>(base.residual_shift_px.y());
-  cv::Mat mx(roi.size(), CV_32F), my(roi.size(), CV_32F);
-  for (int y = 0; y < roi.height; ++y)
-    for (int x = 0; x < roi.width; ++x) {
-      float bx = static_cast<float>(x + roi.x), by = static_cast<float>(y + roi.y);
-      const std::size_t p = worn.index(x + roi.x, y + roi.y);
-      if (worn.status[p] == PixelStatus::valid && worn.chart_uv[p].allFinite()) {
-        const double fi = (worn.chart_uv[p].x() - base_inv.uv_origin.x()) / base_inv.texel_mm;
-        const double fj = (worn.chart_uv[p].y() - base_inv.uv_origin.y()) / base_inv.texel_mm;
-        const int i0 = static_cast<int>(std::floor(fi)), j0 = static_cast<int>(std::floor(fj));
-        if (i0 >= 0 && j0 >= 0 && i0 + 1 < base_inv.width && j0 + 1 < base_inv.height) {
-          const std::size_t k = base_inv.index(i0, j0);
-          if (base_inv.valid[k] && base_inv.valid[k + 1] && base_inv.valid[k + base_inv.width] && base_inv.valid[k + base_inv.width + 1]) {
-            const float u = static_cast<float>(fi - i0), v = static_cast<float>(fj - j0);
-            auto lerp = [&](const std::vector<float>& m) {
-              return (1 - v) * ((1 - u) * m[k] + u * m[k + 1]) + v * ((1 - u) * m[k + base_inv.width] + u * m[k + base_inv.width + 1]);
-            };
-            bx = lerp(base_inv.map_x), by = lerp(base_inv.map_y);
-          }
-        }
-      }
-      mx.at<float>(y, x) = bx - roi.x + rx, my.at<float>(y, x) = by - roi.y + ry;
-    }
-  PhaseAverage out = base;  // its images are replaced, never written into (cv::Mat shares data)
-  out.mean = cv::Mat(), out.variance = cv::Mat(), out.blue_half = cv::Mat();
-  cv::remap(base.mean, out.mean, mx, my, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
-  cv::remap(base.variance, out.variance, mx, my, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
-  if (!base.blue_half.empty()) {  // the half grid: every other pixel's source, halved
-    cv::Mat hx(base.blue_half.size(), CV_32F), hy(base.blue_half.size(), CV_32F);
-    for (int j = 0; j < hx.rows; ++j)
-      for (int i = 0; i < hx.cols; ++i) {
-        const int x = std::min(2 * i, roi.width - 1), y = std::min(2 * j, roi.height - 1);
-        const int x1 = std::min(x + 1, roi.width - 1);  // the cell averages columns 2i, 2i + 1 of row 2j
-        hx.at<float>(j, i) = 0.5f * (0.5f * (mx.at<float>(y, x) + mx.at<float>(y, x1)) - 0.5f), hy.at<float>(j, i) = 0.5f * my.at<float>(y, x);
-      }
-    cv::remap(base.blue_half, out.blue_half, hx, hy, cv::INTER_LINEAR, cv::BORDER_REPLICATE);
-  }
-  out.residual_shift_px = Vec2::Zero();
-  return out;
 }
 
 /// One video whose not-worn phase has its own geometry, read with a registration reference per
@@ -510,8 +496,20 @@ void check_captures(const AssessmentScene& scene, const Phases& p, const Baselin
   const RefractionMap& map = *scene.forward;
   // Glare first: a mostly-glare capture is refused as such, and saturated glare is not overexposure.
   // The phases are compared where they see the same skin.
-  const PhaseAverage base_for_glare = b.view() ? in_worn_geometry(p.base_avg, map, *b.view()) : p.base_avg;
-  a.glare = detect_glare(base_for_glare, p.worn_avg, seen_pixels(map, p.base_avg.roi), o.glare);
+  // With its own geometry the baseline is read where it sees the same skin, through its own
+  // transmittance and share of the fall-off (estimated here); only the skin both phases see is compared.
+  cv::Mat seen = seen_pixels(map, p.base_avg.roi);
+  if (b.view()) {
+    VignettingOptions vo = o.vignetting;
+    vo.enabled = vo.enabled && b.map.has_value();
+    BaselineAsWorn as_worn = baseline_as_worn(p.base_avg, p.worn_avg, map, b.map ? *b.map : map, *b.view(), vo);
+    cv::bitwise_and(seen, as_worn.comparable, seen);
+    if (b.map) warn_vignetting(as_worn.vignetting, a.warnings);
+    a.baseline_geometry.vignetting = std::move(as_worn.vignetting);
+    a.glare = detect_glare(as_worn.average, p.worn_avg, seen, o.glare);
+  } else {
+    a.glare = detect_glare(p.base_avg, p.worn_avg, seen, o.glare);
+  }
   check_glare(a.glare, a.baseline, a.worn, o.glare, a.warnings);
   const double glare_of_roi = a.glare.empty() ? 0.0 : cv::countNonZero(a.glare.mask) / static_cast<double>(a.glare.mask.total());
   check_exposure(p.base_avg, a.baseline.source, "baseline", o, glare_of_roi);
@@ -543,8 +541,16 @@ BlanchingOptions chart_signal(const AssessmentScene& scene, bool own_geometry, c
   BlanchingOptions bo = o.blanching;
   if (!a.glare.empty()) bo.excluded = a.glare_texels;
   bo.spatial_noise = a.baseline.lossy || a.worn.lossy;
-  if (own_geometry) bo.log_transmittance_ratio = log_transmittance_ratio(*scene.forward, inv, *b.map, *b.view());
-  a.signal = compute_blanching(p.base_avg, p.worn_avg, inv, bo, b.view());
+  if (own_geometry) {
+    // The phases see a texel at different pixels: their transmittances and fall-off differ, and a
+    // texel whose taps reach past either phase's skin is unseen rather than a mixture.
+    bo.log_transmittance_ratio = log_phase_ratio(*scene.forward, inv, *b.map, *b.view(), a.baseline_geometry.vignetting.v);
+    bo.ratio_of_smoothed = true;
+    bo.local_spatial_noise = true;
+    a.signal = compute_blanching(nan_where_unseen(p.base_avg, *b.map), nan_where_unseen(p.worn_avg, *scene.forward), inv, bo, b.view());
+  } else {
+    a.signal = compute_blanching(p.base_avg, p.worn_avg, inv, bo, b.view());
+  }
   if (bo.spatial_noise) warn_lossy(a);
   for (const auto& w : a.signal.warnings) a.warnings.push_back(w);
   a.raster = rasterize_chart(*scene.mesh, *scene.chart, a.signal.y.grid);
@@ -556,7 +562,8 @@ BlanchingOptions chart_signal(const AssessmentScene& scene, bool own_geometry, c
     a.warnings.push_back("the camera model carries no projection uncertainty (write it with `clearfit calibrate`): the pressure's "
                          "sigma has no term for the intrinsics (0 used)");
   a.intrinsics_sigma_mm = intrinsics.position_mm;
-  a.signal_sigma = signal_sigma(a.signal, a.position_sigma_mm, intrinsics.signal);
+  a.blur_effect = blur_effect(a.signal, bo);
+  a.signal_sigma = signal_sigma(a.signal, a.position_sigma_mm, intrinsics.signal, a.blur_effect);
   return bo;
 }
 
@@ -570,14 +577,21 @@ std::vector<std::uint8_t> calibrated_pressure(const PressureCalibration& calibra
   a.pressure = {g, std::vector<float>(g.size(), kNaN)};
   a.pressure_sigma = {g, std::vector<float>(g.size(), kNaN)};
   a.pressure_status.assign(g.size(), static_cast<std::uint8_t>(PressureStatus::invalid));
-  calibration.invert(a.signal.y.value, a.signal_sigma.value, a.pressure.value, a.pressure_sigma.value, a.pressure_status);
-  // Lossy captures: the calibration's detection limit is its presses' noise, not the compression's;
-  // a texel not significant against this capture's own noise (spatial term included) is below detection.
+  // The pressure of the signal with the blur's first-order effect undone (blur_effect).
+  const ChartField sharpened = sharpened_signal(a.signal.y, a.blur_effect);
+  calibration.invert(sharpened.value, a.signal_sigma.value, a.pressure.value, a.pressure_sigma.value, a.pressure_status);
+  // Lossy captures and phases with their own geometry: the calibration's detection limit is its presses'
+  // noise, not the capture's; a texel not significant against this capture's own noise (spatial term
+  // included) is below detection. The gate is signal_threshold_sigmas (5), not the calibration's own
+  // detection_sigmas (3): at 3 σ the texture left in a held or lossy capture's signal became false places
+  // at 4.3 kPa (21 on AssessCli's wristband, 2 on LossyCli's), while the σ coverage gained 0.6 points.
   if (spatial_noise)
     for (std::size_t k = 0; k < g.size(); ++k)
       if (a.pressure_status[k] == static_cast<std::uint8_t>(PressureStatus::ok) &&
-          !(a.signal.y.value[k] >= o.signal_threshold_sigmas * a.signal.sigma_y.value[k]))
+          !(a.signal.y.value[k] >= o.signal_threshold_sigmas * a.signal.sigma_y.value[k])) {
         a.pressure_status[k] = static_cast<std::uint8_t>(PressureStatus::below_detection);
+        a.pressure_sigma.value[k] = kNaN;  // 0 kPa below detection is a bound, not an estimate
+      }
   // Below detection is a measurement (less than the detection limit), shown and counted as 0 kPa;
   // pressure_status keeps the flag. Unseen texels stay NaN.
   for (std::size_t k = 0; k < g.size(); ++k)
@@ -744,7 +758,7 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
   check_captures(scene, p, b, o, a);
   if (o.progress) o.progress("blanching signal", 0, 0);
   const BlanchingOptions bo = chart_signal(scene, own_geometry, p, b, o, a);
-  pressure_and_hotspots(scene, calibration, bo.spatial_noise, o, a);
+  pressure_and_hotspots(scene, calibration, bo.spatial_noise || bo.local_spatial_noise, o, a);
   timeline(scene, calibration, own_geometry, p, b, bo, o, a);
   coverage_and_vertices(scene, a);
   pictures(scene, p, a);

@@ -97,6 +97,14 @@ struct PressResponse {
   std::vector<double> edges, rings;
 };
 
+/// Sneddon's flat-punch pressure (force F, radius a) averaged over the annulus r ± h/2, kPa.
+double sneddon_annulus_kpa(double force_n, double a, double r, double h) {
+  const double r0 = std::max(0.0, r - h / 2), r1 = r + h / 2;
+  if (r0 >= a) return 0;
+  auto inside = [&](double rr) { return rr >= a ? 1.0 : 1 - std::sqrt(1 - rr * rr / (a * a)); };  // share of F within rr
+  return 1000 * force_n * (inside(r1) - inside(r0)) / (kPi * (r1 * r1 - r0 * r0));
+}
+
 PressResponse press_response(const SkinParameters& skin, const PressOptions& o, double radius_mm, double mean_kpa) {
   const double kg = skin.absorption[1];
   PressResponse out;
@@ -111,14 +119,18 @@ PressResponse press_response(const SkinParameters& skin, const PressOptions& o, 
     out.rings.assign(rings, out.disc);
     return out;
   }
-  const contact::FlatPunch punch{radius_mm, mean_kpa * kPi * radius_mm * radius_mm / 1000, 3.0};
+  // Sneddon's field, each grid cell given the mean over the annulus of its radius ± h/2 (exact: the
+  // force inside r is F·(1 − √(1 − r²/a²))), so the rim's integrable singularity keeps its share of the
+  // force the gauge reads. Capping it instead (at 3·p_mean) dropped 1/12 of the force and biased the
+  // fitted p50 by +7 %.
+  const double force_n = mean_kpa * kPi * radius_mm * radius_mm / 1000;
   ChartField field;
   const double h = std::min(0.05, radius_mm / 20), m = radius_mm + margin + 4 * skin.blur_sigma_mm + 0.5;
   field.grid = ChartGrid::covering(Vec2(-m, -m), Vec2(m, m), h);
   field.value.resize(field.grid.size());
   for (int j = 0; j < field.grid.height; ++j)
     for (int i = 0; i < field.grid.width; ++i)
-      field.value[field.grid.index(i, j)] = static_cast<float>(punch.pressure_kpa(field.grid.uv(i, j).norm()));
+      field.value[field.grid.index(i, j)] = static_cast<float>(sneddon_annulus_kpa(force_n, radius_mm, field.grid.uv(i, j).norm(), h));
   const ChartField drive = skin_drive(skin, field);
   double disc = 0;
   int n = 0;

@@ -74,6 +74,17 @@ json baseline_geometry_json(const BaselineGeometryReport& b) {
             {"gap_sigma_mm", num(b.gap_sigma_mm)},
             {"gap_source", b.part == BaselinePart::touching ? "none" : b.estimate ? (b.gap_estimated ? "estimated" : "unsure") : "given"},
             {"pixels_seeing_skin", b.pixels_seeing_skin}};
+  if (b.part != BaselinePart::touching) {
+    const VignettingEstimate& v = b.vignetting;
+    j["vignetting"] = {{"model", "V = 1 + v r^2 (r^2: squared distance from the image centre over the half-diagonal's)"},
+                       {"estimated", v.estimated},
+                       {"v_at_corner", num(v.v)},
+                       {"v_sigma", num(v.sigma)},
+                       {"parallax_r2_spread", num(v.spread)},
+                       {"pixels", v.samples},
+                       {"inlier_fraction", num(v.inlier_fraction)},
+                       {"problem", v.problem.empty() ? json(nullptr) : json(v.problem)}};
+  }
   if (b.estimate) {
     const GapEstimate& e = *b.estimate;
     json curve = json::array();

@@ -128,6 +128,17 @@ TEST_F(AssessCli, FindsTheSimulatedHotspotsWhereTheTruthPutsThem) {
   }
   EXPECT_GT(estimates, 100);
   EXPECT_EQ(with_sigma, estimates);
+  // The default baseline is held 1 mm off the skin: the phases see a texel at different pixels. Every
+  // place found is a true one, the glare mask is the one highlight (about 7 % of the seen skin on a
+  // touching capture of this scene; a comparison of pixels that do not see the same skin masked 30 %
+  // and more), and the image's fall-off (divided out) is the simulator's.
+  int places = 0;
+  for (const auto& h : report["hotspots"]) places += h["threshold_kpa"].get<double>() == 4.3;
+  EXPECT_EQ(places, static_cast<int>(truth["hotspots"].size())) << "false places at 4.3 kPa";
+  EXPECT_LT(report["glare"]["fraction_of_seen_pixels"].get<double>(), 0.15);
+  const auto& vignetting = report["baseline_geometry"]["vignetting"];
+  ASSERT_TRUE(vignetting["estimated"].get<bool>()) << vignetting;
+  EXPECT_NEAR(-vignetting["v_at_corner"].get<double>(), truth["camera"]["falloff"].get<double>(), 0.03) << vignetting;
   for (const auto& th : truth["hotspots"]) {
     const NearestHotspot h = nearest_hotspot(report, th);
     const double true_peak = th["peak_kpa"].get<double>();
@@ -186,6 +197,9 @@ TEST_F(AssessCli, PoseCovarianceAddsItsTermWhereThePressureIsSteep) {
   const int h = static_cast<int>(p.shape[0]), w = static_cast<int>(p.shape[1]);
   const double texel_mm = 0.1;  // the scene's outputs.texel_mm
   auto at = [&](const npy::Float32Array& a, int i, int j) { return static_cast<double>(a.values[static_cast<std::size_t>(j) * w + i]); };
+  // Flat: |∇p|·s below 0.3 σ, where the σ may grow by sqrt(1 + 0.3²) - 1 = 4.4 % at most. (The pressure is
+  // read from the sharpened signal, so the hotspots' tops are narrower than the blurred signal's.)
+  constexpr double kFlat = 0.3;
   std::vector<double> steep_ratio, flat_growth;
   double most = 0;  // the largest |∇p|·s / σ
   for (int j = 1; j + 1 < h; ++j)
@@ -199,21 +213,21 @@ TEST_F(AssessCli, PoseCovarianceAddsItsTermWhereThePressureIsSteep) {
       EXPECT_GE(with_s, without_s * (1 - 1e-6)) << "texel " << i << ", " << j;
       most = std::max(most, predicted / without_s);
       if (predicted > without_s) steep_ratio.push_back(std::sqrt(with_s * with_s - without_s * without_s) / predicted);
-      if (predicted < 0.2 * without_s) flat_growth.push_back(with_s / without_s - 1);
+      if (predicted < kFlat * without_s) flat_growth.push_back(with_s / without_s - 1);
     }
   ASSERT_GT(steep_ratio.size(), 50u) << "largest |grad p| s / sigma " << most;
-  ASSERT_GE(flat_growth.size(), 5u);  // the hotspots' tops
+  ASSERT_GE(flat_growth.size(), 2u);  // the 10 kPa hotspot's top (the 14 kPa one's is saturated: no σ)
   auto median = [](std::vector<double> v) {
     std::nth_element(v.begin(), v.begin() + v.size() / 2, v.end());
     return v[v.size() / 2];
   };
   const double steep = median(steep_ratio), flat = median(flat_growth);
   const double flat_max = *std::max_element(flat_growth.begin(), flat_growth.end());
-  std::printf("steep texels (|grad p| s > sigma): %zu, added sigma / (|grad p| s) median %.3f; flat texels (< 0.2 sigma): %zu, "
+  std::printf("steep texels (|grad p| s > sigma): %zu, added sigma / (|grad p| s) median %.3f; flat texels (< 0.3 sigma): %zu, "
               "sigma grew by median %.4f %%, at most %.3f %%\n",
               steep_ratio.size(), steep, flat_growth.size(), 100 * flat, 100 * flat_max);
   EXPECT_NEAR(steep, 1.0, 0.15);
-  EXPECT_LT(flat_max, 0.03);  // sqrt(1 + 0.2²) - 1 = 2 % at most, if clearfit's gradient is this one
+  EXPECT_LT(flat_max, std::sqrt(1 + kFlat * kFlat) - 1 + 0.005);  // if clearfit's gradient is this one
 }
 
 // The camera's projection uncertainty end to end, against a finite-difference propagation: the captures'

@@ -173,7 +173,11 @@ TEST_F(PhaseRegistrationCli, SlideAndBulgesAreRegistered) {
   EXPECT_GT(p_on - p_off, 0.2);
   EXPECT_LE(median, 0.03);
   EXPECT_LE(p95, 0.1);
-  EXPECT_LT(hotspots_at(ron, 4.3), hotspots_at(roff, 4.3));
+  // Unregistered, the slid texture left 59 false places before the signal's noise held the texture that does
+  // not cancel between the phases (BlanchingOptions::local_spatial_noise, on with a held baseline); it still
+  // misplaces the true ones (above), and registration must not add places.
+  EXPECT_LE(hotspots_at(ron, 4.3), hotspots_at(roff, 4.3));
+  EXPECT_EQ(hotspots_at(ron, 4.3), 2);
   EXPECT_NEAR(ron["phase_registration"]["magnitude_mm"]["median"].get<double>(), 0.3, 0.03);
   EXPECT_TRUE(fs::exists(work() / "registered" / "displacement.npy"));
   EXPECT_FALSE(fs::exists(work() / "unregistered" / "displacement.npy"));

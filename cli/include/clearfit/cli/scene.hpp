@@ -324,6 +324,14 @@ struct PhaseRegistrationSection {
   void validate() const;
 };
 
+/// `assess.vignetting:` the fall-off between phases seen at different pixels (a held or absent
+/// baseline; fit/vignetting.hpp); its defaults and rules are VignettingOptions'.
+struct VignettingSection {
+  VignettingOptions options;
+  void bind(SceneFields& f);
+  void validate() const;
+};
+
 /// `assess.timeseries`: the worn phase over time (fit/timeseries.hpp).
 struct TimeSeriesSection {
   TimeSeriesOptions options;
@@ -334,6 +342,7 @@ struct TimeSeriesSection {
 struct AssessSection {
   GlareSection glare;
   PhaseRegistrationSection phase_registration;
+  VignettingSection vignetting;
   TimeSeriesSection timeseries;
   bool normalise_exposure = AssessmentOptions{}.normalise_gains;  ///< per-chunk exposure / white-balance / flicker gains
   double smoothing_mm = BlanchingOptions{}.smoothing_mm;

@@ -15,6 +15,7 @@
 #include <clearfit/fit/phase_registration.hpp>
 #include <clearfit/fit/pressure_model.hpp>
 #include <clearfit/fit/timeseries.hpp>
+#include <clearfit/fit/vignetting.hpp>
 #include <clearfit/refraction/inverse_map.hpp>
 #include <clearfit/refraction/map.hpp>
 
@@ -41,6 +42,7 @@ struct AssessmentOptions {
   bool normalise_gains = true;       ///< divide each chunk by its exposure / white-balance / flicker gain (photometric.hpp)
   GapSearchOptions gap;              ///< estimating the not-worn capture's gap (baseline_gap.hpp)
   PhaseRegistrationOptions phase_registration;  ///< skin that slid or bulged between the phases (phase_registration.hpp)
+  VignettingOptions vignetting;      ///< the fall-off between phases seen at different pixels (vignetting.hpp)
   std::vector<double> thresholds_kpa{4.3, 5.5};  ///< capillary closing, the study's blanching onset
   /// Without a calibration: thresholds on the signal y, in multiples of the
   /// noise (default 5 σ) unless given as values.
@@ -86,6 +88,7 @@ struct BaselineGeometryReport {
   bool gap_estimated = false;           ///< estimated from the captures (auto)
   std::optional<GapEstimate> estimate;  ///< the estimate's details (auto)
   long long pixels_seeing_skin = 0;     ///< in the baseline's own map
+  VignettingEstimate vignetting;        ///< the fall-off divided out of the comparison (own geometry only)
 };
 
 struct Assessment {
@@ -116,6 +119,7 @@ struct Assessment {
   /// 1-σ of the signal per texel: the noise (signal.sigma_y) and the position term in quadrature; inverted
   /// into pressure_sigma, and the σ of the hotspots without a calibration.
   ChartField signal_sigma;
+  ChartField blur_effect;    ///< ½·(skin blur² + smoothing²)·∇²y per texel: undone in the pressure, part of signal_sigma
   std::vector<float> vertex_pressure, vertex_signal;  ///< per mesh vertex, NaN where unseen / off the contact
   std::vector<float> vertex_pressure_sigma;  ///< 1-σ of vertex_pressure (kPa); NaN where pressure_sigma is undefined around it
   cv::Mat skin_camera;                       ///< last worn frame (BGR8), as the camera saw it, glare mask outlined in magenta

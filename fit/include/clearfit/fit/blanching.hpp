@@ -26,6 +26,15 @@ namespace clearfit {
 
 struct BlanchingOptions {
   double smoothing_mm = 0.25;            ///< Gaussian σ on the chart, mm (0: none)
+  /// The skin spreads the contact pressure laterally before it blanches (SKIN.md: a Gaussian of about
+  /// 0.3 mm, as FieldFitOptions::blur_sigma_mm), and the feature is smoothed by smoothing_mm on top: the
+  /// signal reads the contact pressure blurred by both, lower at a peak and higher at a foot by
+  /// ½·(blur² + smoothing²)·∇²y. That resolution error is part of each texel's σ (assessment.cpp).
+  double skin_blur_mm = 0.3;
+  /// The curvature ∇²y of that term is taken on y smoothed by this much more (mm): the first order holds
+  /// for features wider than the blur, and a narrower Laplacian is mostly noise. Measured: 0.2 / 0.5 / 1.0 mm
+  /// gave SigmaCoverage 86.7 / 91.6 / 91.9 % and the study plate's sensitivity at 5.5 kPa 73 / 87 / 99 %.
+  double curvature_smoothing_mm = 1.0;
   std::optional<Vec2> reference_uv_mm;   ///< centre of a reference disk on the chart
   double reference_radius_mm = 2.0;      ///< its radius
   std::vector<std::uint8_t> excluded;    ///< per chart texel: 1 = left out, unseen (glare, glare.hpp); empty: none
@@ -38,6 +47,23 @@ struct BlanchingOptions {
   /// transmittances when each has its own map (baseline_map.hpp), subtracted
   /// from y_raw; empty: none (one map, they cancel).
   std::vector<float> log_transmittance_ratio;
+  /// y = ln(smooth(G) / smooth(G0)) instead of smooth(ln(G / G0)): the phases' greens are averaged
+  /// before their ratio is taken. Needed when the phases see a texel through pixels of different
+  /// footprints (a baseline with its own geometry): a pixel averages the skin's texture over its
+  /// footprint, and E[ln G] grows as the footprint does (Jensen: by about half the texture's
+  /// variance left in the pixel), so the log ratio of differently sampled texture is biased where
+  /// the footprints differ (the band's oblique ends: false places of 5–6 kPa); averaging the linear
+  /// greens over the same texels first removes it. Where one map serves both phases the two agree.
+  bool ratio_of_smoothed = false;
+  /// The noise also holds a local spatial term: texture that does not cancel between the phases
+  /// (sampled by pixels of different footprints, aliased differently: the band's oblique ends with a
+  /// held baseline). Per texel, the mean square of the smoothed feature's negative values within a
+  /// Gaussian window of `local_noise_window_mm` (blanching only raises the feature, so the negative
+  /// side is the error's, whatever is pressed), less the frames' own share, is added to sigma_y in
+  /// quadrature; a window with too few negative texels (a fifth of its seen ones: blanched skin)
+  /// adds nothing, so a pressed place keeps its own noise.
+  bool local_spatial_noise = false;
+  double local_noise_window_mm = 2.0;
 };
 
 struct BlanchingSignal {
@@ -50,6 +76,7 @@ struct BlanchingSignal {
   double noise_sigma = 0;          ///< median of sigma_y over the seen texels
   double temporal_noise_sigma = 0; ///< noise_sigma from the frames' spread alone
   double spatial_noise_sigma = 0;  ///< the spatial term added to every texel's sigma_y in quadrature (spatial_noise; else 0)
+  double local_noise_sigma_p95 = 0; ///< local_spatial_noise: the 95th percentile of the local term over the seen texels
   long long texels_seen = 0;
   std::vector<std::string> warnings;
 };

@@ -115,8 +115,11 @@ struct PressureCalibration {
 
   /// Forward model y(p), p in kPa.
   double signal(double p_kpa) const;
-  /// Detection limit: 3 · noise_sigma.
-  double detection_signal() const { return 3.0 * noise_sigma; }
+  /// A signal is detected when it exceeds this many of its own noise σ: the calibration's presses
+  /// (detection_signal) and, in an assessment whose capture has its own noise, each texel's σ.
+  static constexpr double detection_sigmas = 3.0;
+  /// Detection limit: detection_sigmas · noise_sigma.
+  double detection_signal() const { return detection_sigmas * noise_sigma; }
   /// Highest signal inverted without flag: the smaller of 95 % of y_max and
   /// the signal at p_max_kpa (logistic), the signal at p_max_kpa (linear,
   /// which has no saturation): above it the inverse would extrapolate.
