@@ -1,4 +1,5 @@
 #include "baseline_photometry.hpp"
+#include "masked_smoothing.hpp"
 
 #include <cmath>
 #include <limits>
@@ -74,15 +75,6 @@ SourcePixels source_pixels(const cv::Rect& roi, const RefractionMap& worn, const
   return s;
 }
 
-/// Mean of `image` over the comparable pixels within a Gaussian of `sigma_px` (normalised convolution).
-cv::Mat local_mean(const cv::Mat& image, const cv::Mat& comparable, double sigma_px) {
-  cv::Mat w, v;
-  comparable.convertTo(w, CV_32F, 1.0 / 255);
-  v = image.mul(w);
-  cv::GaussianBlur(v, v, cv::Size(), sigma_px, sigma_px, cv::BORDER_CONSTANT);
-  cv::GaussianBlur(w, w, cv::Size(), sigma_px, sigma_px, cv::BORDER_CONSTANT);
-  return v / cv::max(w, 1e-6);
-}
 
 /// The pressed places and a margin around them: ln(worn / baseline) of the local means more than 3 robust
 /// deviations above its median, dilated by `margin_px`. Tukey's weights drop strong blanching sample by
@@ -137,8 +129,8 @@ std::vector<VignettingSample> vignetting_samples(const cv::Mat& worn_mean, const
   std::vector<VignettingSample> out;
   constexpr float kDark = 1e-4f, kBright = 0.95f;
   const double sigma_px = 2.0 * stride;
-  const cv::Mat worn_local = local_mean(worn_mean, s.comparable, sigma_px);
-  const cv::Mat base_local = local_mean(base_mean.mul(s.t_ratio), s.comparable, sigma_px);
+  const cv::Mat worn_local = masked_gaussian(worn_mean, s.comparable, sigma_px, cv::BORDER_CONSTANT);
+  const cv::Mat base_local = masked_gaussian(base_mean.mul(s.t_ratio), s.comparable, sigma_px, cv::BORDER_CONSTANT);
   const cv::Mat pressed = pressed_pixels(worn_local, base_local, s.comparable, margin_px);
   for (int y = 0; y < roi.height; y += stride)
     for (int x = 0; x < roi.width; x += stride) {

@@ -1,6 +1,7 @@
 // Glare on the clear part: detection in the window averages, its chart
 // texels, and hotspots that touch it (see glare.hpp).
 #include <clearfit/fit/glare.hpp>
+#include "masked_smoothing.hpp"
 #include <clearfit/format.hpp>
 #include <clearfit/fit/photometric.hpp>
 #include <clearfit/fit/srgb.hpp>
@@ -39,16 +40,6 @@ double robust_sigma(const cv::Mat& m, const cv::Mat& valid) {
   const double med = median_of(v);
   for (float& x : v) x = static_cast<float>(std::abs(x - med));
   return 1.4826 * median_of(std::move(v));
-}
-
-/// Gaussian smoothing over the valid pixels only (normalised convolution).
-cv::Mat smooth_valid(const cv::Mat& m, const cv::Mat& valid, double sigma) {
-  cv::Mat w, v;
-  valid.convertTo(w, CV_32F, 1.0 / 255);
-  v = m.mul(w);
-  cv::GaussianBlur(v, v, cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
-  cv::GaussianBlur(w, w, cv::Size(), sigma, sigma, cv::BORDER_REPLICATE);
-  return v / cv::max(w, 1e-6);
 }
 
 /// Green on the half-resolution grid: the mean of the two pixels blue was read at.
@@ -121,7 +112,7 @@ GlareMask detect_glare(const PhaseAverage& base, const PhaseAverage& worn, const
     return l;
   };
   const double s = o.smooth_px;
-  auto smooth = [&](const cv::Mat& m) { return s > 0 ? smooth_valid(m, valid, s) : m.clone(); };
+  auto smooth = [&](const cv::Mat& m) { return s > 0 ? masked_gaussian(m, valid, s, cv::BORDER_REPLICATE) : m.clone(); };
   const cv::Mat lg0 = smooth(log_of(g0)), lg1 = smooth(log_of(g1)), lb0 = smooth(log_of(b0)), lb1 = smooth(log_of(b1));
   // Skin colour c = B/G and the static score per phase.
   const cv::Mat chroma0 = lb0 - lg0, chroma1 = lb1 - lg1;
@@ -245,6 +236,15 @@ void flag_hotspots_at_mask(std::vector<Hotspot>& hotspots, const std::vector<int
       for (Hotspot& h : hotspots)
         if (h.id == id) h.touches_mask = true;
     }
+}
+
+cv::Mat masked_gaussian(const cv::Mat& image, const cv::Mat& mask, double sigma_px, int border) {
+  cv::Mat w, v;
+  mask.convertTo(w, CV_32F, 1.0 / 255);
+  v = image.mul(w);
+  cv::GaussianBlur(v, v, cv::Size(), sigma_px, sigma_px, border);
+  cv::GaussianBlur(w, w, cv::Size(), sigma_px, sigma_px, border);
+  return v / cv::max(w, 1e-6);
 }
 
 }  // namespace clearfit
