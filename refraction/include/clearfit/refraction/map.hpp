@@ -47,10 +47,14 @@ struct MapOptions {
   /// exact: every pixel traced. grid: cells of grid_step px with nine traced
   /// nodes (corners, edge midpoints, centre); cells whose nodes are all valid
   /// on one contact component are filled by quadratic interpolation, others
-  /// split. adaptive: like grid, but a cell is filled only if four exactly
+  /// split. adaptive: like grid, but a cell is filled only if eight exactly
   /// traced check pixels (its quadrants' centres, at 1/4 and 3/4 of both
-  /// diagonals) are within tolerance_um of the interpolation and its parent's
-  /// nodes and checks were all valid; otherwise it is split (quadtree).
+  /// diagonals, and one pixel drawn inside each quadrant: the centres alone
+  /// missed the ripple facets leave in the map) are within half of tolerance_um
+  /// of the interpolation, and its parent's nodes and checks were all valid
+  /// with an error of at most 16 tolerances (with flat normals, all entered
+  /// the part through one face); otherwise it is split (quadtree; the checks
+  /// and their thresholds: refraction/src/quadtree.hpp).
   /// In both, a cell of 8 px or less that a validity boundary (or a change of
   /// contact component) crosses goes to the boundary resolver: the pixels on
   /// both sides of every change of validity the nodes reveal are traced (a
