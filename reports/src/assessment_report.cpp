@@ -181,6 +181,12 @@ json intrinsics_json(const Assessment& a, const AssessmentScene& scene) {
   j["largest_px"] = scene.projection_uncertainty->largest();
   j["distance_mm"] = scene.projection_uncertainty->distance_mm;
   j["uncertainty_mm"] = largest_where_seen(a, a.intrinsics_sigma_mm);
+  const ProjectionSigmaOnContact& s = a.projection_on_contact;  // where the part lies in the view
+  j["contact"] = {{"largest_px", s.largest_px},
+                  {"at_pixel", {s.largest_at_px.x(), s.largest_at_px.y()}},
+                  {"median_px", s.median_px},
+                  {"fraction_above_threshold", s.fraction_above},
+                  {"threshold_px", s.threshold_px}};
   j["position_uncertainty"] = "from the camera model's projection uncertainty through the inverse map: in the sigma of every texel as "
                               "|grad signal| x the skin position's sigma, in quadrature with the pose's";
   return j;

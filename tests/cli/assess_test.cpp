@@ -293,6 +293,10 @@ TEST_F(AssessCli, IntrinsicsUncertaintyAddsItsTermWhereThePressureIsSteep) {
   const std::string warnings = report["plain"]["warnings"].dump();
   EXPECT_NE(warnings.find("no projection uncertainty"), std::string::npos) << warnings;
   EXPECT_EQ(report["u"]["warnings"].dump().find("no projection uncertainty"), std::string::npos);
+  // σ_q = 0.5 px everywhere: at the warning's threshold (AssessmentOptions::max_projection_sigma_px), not above it.
+  EXPECT_EQ(intrinsics["contact"]["largest_px"].get<double>(), s);
+  EXPECT_EQ(intrinsics["contact"]["fraction_above_threshold"].get<double>(), 0.0);
+  EXPECT_EQ(report["u"]["warnings"].dump().find("camera model is unsure"), std::string::npos);
   ASSERT_EQ(p["u"].values.size(), p["plain"].values.size());
   for (std::size_t k = 0; k < p["plain"].values.size(); ++k)
     ASSERT_TRUE(p["plain"].values[k] == p["u"].values[k] || (std::isnan(p["plain"].values[k]) && std::isnan(p["u"].values[k]))) << k;
@@ -320,6 +324,53 @@ TEST_F(AssessCli, IntrinsicsUncertaintyAddsItsTermWhereThePressureIsSteep) {
               steep_ratio.size(), steep, flat_growth.size(), 100 * flat, intrinsics["uncertainty_mm"].get<double>());
   EXPECT_NEAR(steep, 1.0, 0.15);
   EXPECT_LT(flat, 0.03);
+}
+
+// A calibration whose boards did not reach the right of the view: the captures' camera model with four cells
+// of projection uncertainty side by side, 0.05 px in the left three and 3 px in the rightmost (σ_q linear in x
+// between the cells' centres at (c + 0.5)·W/4 − 0.5, constant beyond the outer ones). The band spans the
+// image's centre and reaches into the last cell's slope: the report names the largest σ_q over the seen
+// contact surface at its pixel (the closed form there), the share above 0.5 px, and warns with the figure
+// and what to do.
+TEST_F(AssessCli, WarnsWhereThePartLiesOutsideTheCalibratedView) {
+  std::string model;
+  {
+    std::istringstream in(read_text(captures() / "camera.cameramodel"));
+    for (std::string line; std::getline(in, line);)
+      if (line.find("'clearfit_uncertainty_") == std::string::npos) model += line + "\n";
+  }
+  model.insert(model.rfind('}'), "    'clearfit_uncertainty_cells': [ 4, 1, ],\n    'clearfit_uncertainty_distance_mm': 100,\n"
+                                 "    'clearfit_uncertainty_px': [ 0.05, 0.05, 0.05, 3, ],\n");
+  write_text(work() / "uncovered.cameramodel", model);
+  const auto size_at = model.find('[', model.find("'imagersize'"));
+  const double width = std::stod(model.substr(size_at + 1));
+  scene(two_captures(), "", (work() / "uncovered.cameramodel").string());
+  const RunResult r = assess();
+  ASSERT_EQ(r.exit_code, 0) << r;
+  const auto report = nlohmann::json::parse(read_text(work() / "out" / "report.json"));
+  const auto& contact = report["calibration"]["camera_intrinsics"]["contact"];
+  const double largest = contact["largest_px"].get<double>(), x = contact["at_pixel"][0].get<double>();
+  const double t = std::clamp((x + 0.5) * 4 / width - 0.5, 0.0, 3.0);  // in cells from the first centre
+  const double expected = 0.05 + 2.95 * std::max(0.0, t - 2);          // 0.05 up to the third centre, 3 at the fourth
+  std::printf("largest sigma_q %.3f px at x %.1f of %.0f px (closed form %.3f), median %.3f px, %.1f %% above %.2f px\n", largest, x,
+              width, expected, contact["median_px"].get<double>(), 100 * contact["fraction_above_threshold"].get<double>(),
+              contact["threshold_px"].get<double>());
+  EXPECT_NEAR(largest, expected, 1e-4);
+  EXPECT_GT(x, width / 2);  // the band reaches right of the centre
+  EXPECT_GT(largest, 0.5);
+  EXPECT_LT(largest, 3.0);  // inside the slope: the closed form is not the clamp's
+  EXPECT_EQ(contact["threshold_px"].get<double>(), 0.5);
+  EXPECT_GT(contact["fraction_above_threshold"].get<double>(), 0.0);
+  EXPECT_LT(contact["median_px"].get<double>(), largest);
+  std::string warning;
+  for (const auto& w : report["warnings"])
+    if (w.get<std::string>().find("camera model is unsure") != std::string::npos) warning = w.get<std::string>();
+  ASSERT_FALSE(warning.empty()) << report["warnings"];
+  std::printf("%s\n", warning.c_str());
+  char figure[32];
+  std::snprintf(figure, sizeof figure, "reaches %.2f px", largest);
+  EXPECT_NE(warning.find(figure), std::string::npos) << warning;
+  EXPECT_NE(warning.find("calibrate again"), std::string::npos) << warning;
 }
 
 TEST_F(AssessCli, WithoutCalibrationReportsTheSignal) {

@@ -52,6 +52,12 @@ struct AssessmentOptions {
   TimeSeriesOptions timeseries;          ///< the worn phase over time (timeseries.hpp)
   double max_saturated_fraction = 0.02;  ///< more saturated pixels than this in a window is an error
   double min_mean_code = 10.0;           ///< a darker window (mean 8-bit green) is an error
+  /// The camera model's projection uncertainty (1-σ px, ProjectionUncertainty) above which the part is said
+  /// to lie where the calibration did not reach: a warning names the largest σ over the seen contact
+  /// surface and asks for boards covering that part of the view. 0.5 px: with the calibration benchmark's
+  /// 30 boards (corner noise 0.3 px, README "Calibration") the model's error is 0.06 px at the centre and
+  /// under 0.6 px wherever corners were seen, 1.3-1.7 px beyond them.
+  double max_projection_sigma_px = 0.5;
   /// Progress: stage name, done, total (0: unknown).
   std::function<void(const std::string&, int, int)> progress;
 };
@@ -91,6 +97,19 @@ struct BaselineGeometryReport {
   VignettingEstimate vignetting;        ///< the fall-off divided out of the comparison (own geometry only)
 };
 
+/// The camera model's projection uncertainty over the seen contact surface (the texels where the signal
+/// is defined): the largest σ_q (px) and the camera pixel it is at, the share of the seen texels above
+/// the threshold, and the largest skin position σ (mm) it gives. Empty (texels 0) without the term.
+struct ProjectionSigmaOnContact {
+  long long texels = 0;            ///< seen texels with a σ_q
+  double largest_px = 0;           ///< the largest σ_q over them
+  Vec2 largest_at_px = Vec2::Zero();  ///< the camera pixel of that texel
+  double median_px = 0;
+  double threshold_px = 0;         ///< AssessmentOptions::max_projection_sigma_px
+  double fraction_above = 0;       ///< of the seen texels, σ_q above the threshold
+  double position_mm = 0;          ///< the largest skin position σ over the seen texels (mm, per axis)
+};
+
 struct Assessment {
   PhaseReport baseline, worn;
   BaselineGeometryReport baseline_geometry;
@@ -116,6 +135,8 @@ struct Assessment {
   /// empty when the model carries none. Its signal term σ_q·|Aᵀ∇y| is in signal_sigma; the hotspots'
   /// centres take it in quadrature with the pose's.
   ChartField intrinsics_sigma_mm;
+  /// The projection uncertainty over the seen contact surface (assessment_stages.hpp); texels 0 without it.
+  ProjectionSigmaOnContact projection_on_contact;
   /// 1-σ of the signal per texel: the noise (signal.sigma_y) and the position term in quadrature; inverted
   /// into pressure_sigma, and the σ of the hotspots without a calibration.
   ChartField signal_sigma;

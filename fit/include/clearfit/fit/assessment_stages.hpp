@@ -1,0 +1,96 @@
+#pragma once
+// The assessment's stages that compute on plain values (assess_captures in assessment.hpp runs them in
+// order, between reading the captures and writing the vertices): the checks that refuse or warn about
+// captures, where on the skin each texel lies by the pose and by the camera model, the blur's
+// first-order effect, the signal's σ, and the signal turned into pressure. Each is a pure function of
+// its arguments (warnings appended to the vector given), so tests hold them to closed forms.
+#include <clearfit/fit/assessment.hpp>
+
+#include <string>
+#include <vector>
+
+namespace clearfit {
+
+// ---- Checks on the captures (stage 3) ----
+
+/// Refuses a capture that is mostly glare (the largest of the glare fractions over both phases above
+/// o.max_fraction: InputError naming the worse phase's source); warns how many highlights it masked.
+void check_glare(const GlareMask& g, const PhaseReport& base, const PhaseReport& worn, const GlareOptions& o,
+                 std::vector<std::string>& warnings);
+
+/// Warns when the exposure or white balance changed inside a window (chunk gains spanning more than
+/// 2 %: normalised, but worth locking) and when each chunk's gain is known to worse than 0.2 %.
+void warn_gains(const PhaseReport& p, const std::string& role, std::vector<std::string>& warnings);
+
+/// Refuses a window that is overexposed (saturated fraction above o.max_saturated_fraction plus
+/// `glare_fraction`, the share of the roi masked as glare, whose saturation is allowed) or too dark
+/// (mean green code below o.min_mean_code): InputError naming `source` and the window's frames.
+void check_exposure(const PhaseAverage& avg, const std::string& source, const std::string& role, const AssessmentOptions& o,
+                    double glare_fraction);
+
+// ---- Where on the skin each texel lies (stage 4) ----
+
+/// Per texel, 1-σ (mm, per axis) of where the texel's skin lies across the camera's line of sight: a pose
+/// error (δθ about the camera axes, δt) moves a point p of the part (camera frame) by δθ × (p − t) + δt.
+/// The lateral shift stands for the shift on the skin (the skin's tilt to the ray and refraction ignored).
+/// NaN outside the chart (raster.face < 0).
+ChartField position_sigma(const ChartRaster& raster, const Rigid3& cam_from_part, const PoseCovariance& covariance);
+
+/// The camera's projection uncertainty on the chart: a pixel's ray errs by δq (σ_q px per image axis, the
+/// worst direction's σ taken for both), which moves the skin point a texel reads by A·δq, A = (∂pixel/∂uv)⁻¹
+/// (the inverse map's Jacobian by central differences, one-sided at its edges). Per texel: σ_q itself (px),
+/// the skin position's σ per axis, σ_q·‖A‖_F/√2 (mm), and the signal's, σ_q·|Aᵀ∇y|. NaN where the inverse
+/// map has no pixel or its Jacobian is singular (the signal's term also where y is undefined).
+struct IntrinsicsTerm {
+  ChartField pixel_sigma_px, position_mm, signal;
+};
+/// `width`, `height`: the camera's imager (ProjectionUncertainty::at's cells span it).
+IntrinsicsTerm intrinsics_term(const InverseMap& inv, const ChartField& y, const ProjectionUncertainty& u, int width, int height);
+
+/// The camera model's projection uncertainty over the seen contact surface (ProjectionSigmaOnContact in
+/// assessment.hpp), from intrinsics_term's σ_q where `y` is defined; `inv` gives the texels' pixels.
+ProjectionSigmaOnContact projection_sigma_on_contact(const IntrinsicsTerm& term, const ChartField& y, const InverseMap& inv,
+                                                     double threshold_px);
+/// The warning when the part falls where the camera model is unsure (largest_px above the threshold): the
+/// figures, and what to do (calibrate again with boards covering that part of the view). Nothing otherwise.
+void warn_projection_sigma(const ProjectionSigmaOnContact& s, std::vector<std::string>& warnings);
+
+/// The pose's and the intrinsics' position σ in quadrature (either may be empty; NaN in one: the other).
+ChartField position_sigma_total(const ChartField& pose, const ChartField& intrinsics);
+
+/// Adds the position's σ to each hotspot's centre of pressure: a pose error shifts the whole place
+/// (two lateral axes, mean σ_pos² over the place's texels), in quadrature with the noise's term.
+/// `labels`: place id per texel (0 = none), as find_hotspots writes them.
+void add_position_to_centres(std::vector<Hotspot>& hotspots, const std::vector<int>& labels, const ChartField& position_mm);
+
+// ---- The signal's blur and σ (stage 4) ----
+
+/// Per texel, the blur's first-order effect on the signal: ½·(blur² + smoothing²)·∇²y
+/// (BlanchingOptions::skin_blur_mm, smoothing_mm). The signal reads the contact pressure blurred by the
+/// skin and by the feature's smoothing, which lowers a peak and raises a foot by this much. ∇²y by the
+/// 5-point stencil on y smoothed by a further curvature_smoothing_mm (normalised over the seen texels), so
+/// that the noise's Laplacian adds little; 0 where a neighbour is unseen and on the grid's border.
+ChartField blur_effect(const BlanchingSignal& signal, const BlanchingOptions& o);
+
+/// The signal the pressure is read from: y with the blur's first-order effect (blur_effect) undone.
+ChartField sharpened_signal(const ChartField& y, const ChartField& blur);
+
+/// The signal's σ: its noise (signal.sigma_y), the blur's first-order effect (the pressure undoes it, and
+/// its size stands for what the first order misses), the intrinsics' term (IntrinsicsTerm::signal; may be
+/// empty) and, where the pose is uncertain, |∇y'|·σ_pos, in quadrature, with y' the sharpened signal (∇ by
+/// central differences on the chart, one-sided beside unseen texels; position_mm may be empty).
+ChartField signal_sigma(const BlanchingSignal& signal, const ChartField& position_mm, const ChartField& intrinsics_signal,
+                        const ChartField& blur);
+
+// ---- Pressure (stage 5) ----
+
+/// The signal turned into pressure through the calibration (PressureCalibration::invert of the sharpened
+/// signal, a.signal_sigma its σ): fills a.calibrated, a.pressure, a.pressure_sigma, a.pressure_status and
+/// the summary figures (below-detection and saturated fractions of the seen texels, peak and mean over the
+/// estimates). With `spatial_noise` (a lossy capture, or phases with their own geometry) a texel below
+/// o.signal_threshold_sigmas of its own σ_y is below detection. Below detection counts as 0 kPa (σ NaN).
+/// Reads a.signal, a.blur_effect (may be empty) and a.signal_sigma; returns 1 per saturated texel.
+std::vector<std::uint8_t> calibrated_pressure(const PressureCalibration& calibration, bool spatial_noise, const AssessmentOptions& o,
+                                              Assessment& a);
+
+}  // namespace clearfit

@@ -1,0 +1,274 @@
+// The assessment's stages on plain values (assessment_stages.hpp): the checks on the captures, where on
+// the skin each texel lies, the blur's first-order effect, the signal's σ and the pressure.
+#include <clearfit/error.hpp>
+#include <clearfit/fit/assessment_stages.hpp>
+#include <clearfit/format.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <limits>
+#include <opencv2/imgproc.hpp>
+
+namespace clearfit {
+namespace {
+constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
+}  // namespace
+
+void check_glare(const GlareMask& g, const PhaseReport& base, const PhaseReport& worn, const GlareOptions& o,
+                 std::vector<std::string>& warnings) {
+  const bool worn_worse = g.fraction_worn >= g.fraction_baseline;
+  const double worst = std::max({g.fraction, g.fraction_worn, g.fraction_baseline});
+  if (worst > o.max_fraction)
+    throw InputError(worn_worse ? worn.source : base.source, worn_worse ? "worn capture" : "baseline capture",
+                     "is mostly glare: specular reflections of the part cover " + fixed_digits(100 * worst, 1) +
+                         " % of the skin the camera sees (at most " + fixed_digits(100 * o.max_fraction, 1) + " % allowed)",
+                     "move the light or the camera so its reflection on the part falls beside the skin (or use a diffuser or "
+                     "crossed polarisers), and film again");
+  if (g.regions > 0)
+    warnings.push_back("glare: " + std::to_string(g.regions) + " specular highlight" + (g.regions == 1 ? "" : "s") + " masked (" +
+                       fixed_digits(100 * g.fraction, 1) + " % of the seen skin): not assessed there");
+  for (const auto& w : g.warnings) warnings.push_back(w);
+}
+
+void warn_gains(const PhaseReport& p, const std::string& role, std::vector<std::string>& warnings) {
+  if (p.gain_max / std::max(p.gain_min, 1e-9) > 1.02)
+    warnings.push_back("the exposure or white balance changed by " + fixed_digits(100 * (p.gain_max / p.gain_min - 1), 1) + " % during the " + role +
+                       " window (chunk gains " + fixed_digits(p.gain_min, 3) + " to " + fixed_digits(p.gain_max, 3) +
+                       "), normalised; lock the camera's exposure and white balance to avoid it");
+  if (p.gain_sigma > 0.002)
+    warnings.push_back("the exposure normalisation of the " + role + " window is unsure: each chunk's gain is known to " +
+                       fixed_digits(100 * p.gain_sigma, 2) + " % only");
+}
+
+void check_exposure(const PhaseAverage& avg, const std::string& source, const std::string& role, const AssessmentOptions& o,
+                    double glare_fraction) {
+  const std::string frames = "frames " + std::to_string(avg.window.first) + ".." + std::to_string(avg.window.first + avg.window.count - 1);
+  if (avg.saturated_fraction > o.max_saturated_fraction + glare_fraction)
+    throw InputError(source, frames,
+                     "the " + role + " capture is overexposed: " + fixed_digits(100 * avg.saturated_fraction, 1) +
+                         " % of the pixels that see the skin are saturated (at most " + fixed_digits(100 * o.max_saturated_fraction, 1) + " % allowed)",
+                     "lower the exposure or the light, lock auto exposure, and film again");
+  if (avg.mean_code < o.min_mean_code)
+    throw InputError(source, frames,
+                     "the " + role + " capture is too dark: mean green " + fixed_digits(avg.mean_code, 1) + " of 255 where the skin is seen (at least " +
+                         fixed_digits(o.min_mean_code, 1) + " needed)",
+                     "raise the exposure or the light, and film again");
+}
+
+ChartField position_sigma(const ChartRaster& raster, const Rigid3& cam_from_part, const PoseCovariance& covariance) {
+  ChartField out{raster.grid, std::vector<float>(raster.grid.size(), kNaN)};
+  for (std::size_t k = 0; k < raster.grid.size(); ++k) {
+    if (raster.face[k] < 0) continue;
+    const Vec3 p = cam_from_part.apply(raster.point[k]), v = p - cam_from_part.translation;
+    Eigen::Matrix<double, 3, 6> J;
+    J << 0, v.z(), -v.y(), 1, 0, 0,  //  δθ × v = −[v]× δθ
+        -v.z(), 0, v.x(), 0, 1, 0,   //
+        v.y(), -v.x(), 0, 0, 0, 1;
+    const Eigen::Matrix3d moved = J * covariance * J.transpose();
+    const Vec3 u = p.normalized();
+    const Eigen::Matrix3d across = Eigen::Matrix3d::Identity() - u * u.transpose();
+    out.value[k] = static_cast<float>(std::sqrt(std::max(0.0, (across * moved * across).trace() / 2)));
+  }
+  return out;
+}
+
+IntrinsicsTerm intrinsics_term(const InverseMap& inv, const ChartField& y, const ProjectionUncertainty& u, int width, int height) {
+  const ChartGrid& grid = y.grid;
+  const ChartField nan{grid, std::vector<float>(grid.size(), kNaN)};
+  IntrinsicsTerm out{nan, nan, nan};
+  auto pixel = [&](int i, int j) {
+    const auto k = inv.index(i, j);
+    return inv.valid[k] ? Vec2(inv.map_x[k], inv.map_y[k]) : Vec2(kNaN, kNaN);
+  };
+  auto derivative = [&](int i, int j, int di, int dj) {  // ∂pixel per mm along (di, dj)
+    const bool ahead = i + di < inv.width && j + dj < inv.height, behind = i - di >= 0 && j - dj >= 0;
+    const Vec2 a = ahead ? pixel(i + di, j + dj) : Vec2(kNaN, kNaN), b = behind ? pixel(i - di, j - dj) : Vec2(kNaN, kNaN), c = pixel(i, j);
+    if (a.allFinite() && b.allFinite()) return Vec2((a - b) / (2 * inv.texel_mm));
+    if (a.allFinite()) return Vec2((a - c) / inv.texel_mm);
+    if (b.allFinite()) return Vec2((c - b) / inv.texel_mm);
+    return Vec2(kNaN, kNaN);
+  };
+  for (int j = 0; j < inv.height; ++j)
+    for (int i = 0; i < inv.width; ++i) {
+      const Vec2 q = pixel(i, j);
+      if (!q.allFinite()) continue;
+      Eigen::Matrix2d J;
+      J.col(0) = derivative(i, j, 1, 0), J.col(1) = derivative(i, j, 0, 1);
+      if (!J.allFinite() || std::abs(J.determinant()) < 1e-12) continue;
+      const Eigen::Matrix2d A = J.inverse();
+      const double sigma_q = u.at(q, width, height);
+      const auto k = grid.index(i, j);
+      out.pixel_sigma_px.value[k] = static_cast<float>(sigma_q);
+      out.position_mm.value[k] = static_cast<float>(sigma_q * A.norm() / std::sqrt(2.0));
+      if (std::isfinite(y.value[k])) out.signal.value[k] = static_cast<float>(sigma_q * (A.transpose() * gradient(y, i, j)).norm());
+    }
+  return out;
+}
+
+ProjectionSigmaOnContact projection_sigma_on_contact(const IntrinsicsTerm& term, const ChartField& y, const InverseMap& inv,
+                                                     double threshold_px) {
+  ProjectionSigmaOnContact s;
+  s.threshold_px = threshold_px;
+  if (term.pixel_sigma_px.value.size() != y.value.size()) return s;
+  std::vector<double> all;
+  long long above = 0;
+  for (int j = 0; j < y.grid.height; ++j)
+    for (int i = 0; i < y.grid.width; ++i) {
+      const auto k = y.grid.index(i, j);
+      const double q = term.pixel_sigma_px.value[k];
+      if (!std::isfinite(y.value[k]) || !std::isfinite(q)) continue;
+      all.push_back(q);
+      above += q > threshold_px;
+      if (q > s.largest_px || all.size() == 1) {
+        s.largest_px = q;
+        const auto m = inv.index(i, j);
+        s.largest_at_px = Vec2(inv.map_x[m], inv.map_y[m]);
+      }
+      if (const double mm = term.position_mm.value[k]; std::isfinite(mm)) s.position_mm = std::max(s.position_mm, mm);
+    }
+  s.texels = static_cast<long long>(all.size());
+  if (all.empty()) return s;
+  const auto mid = all.begin() + static_cast<std::ptrdiff_t>(all.size() / 2);
+  std::nth_element(all.begin(), mid, all.end());
+  s.median_px = *mid;
+  s.fraction_above = static_cast<double>(above) / static_cast<double>(all.size());
+  return s;
+}
+
+void warn_projection_sigma(const ProjectionSigmaOnContact& s, std::vector<std::string>& warnings) {
+  if (s.texels == 0 || !(s.largest_px > s.threshold_px)) return;
+  const std::string at = "(" + fixed_digits(s.largest_at_px.x(), 0) + ", " + fixed_digits(s.largest_at_px.y(), 0) + ")";
+  warnings.push_back("the part lies where the camera model is unsure: its projection uncertainty reaches " + fixed_digits(s.largest_px, 2) +
+                     " px at pixel " + at + " (median " + fixed_digits(s.median_px, 2) + " px over the seen contact surface, " +
+                     fixed_digits(100 * s.fraction_above, 1) + " % of it above " + fixed_digits(s.threshold_px, 2) +
+                     " px), so where on the skin a texel lies is uncertain by up to " + fixed_digits(s.position_mm, 3) +
+                     " mm (1-σ, in the pressure's σ); the calibration's boards did not cover that part of the view: calibrate "
+                     "again (`clearfit calibrate`) with images whose boards fill the view around pixel " + at + " at the part's distance");
+}
+
+ChartField position_sigma_total(const ChartField& pose, const ChartField& intrinsics) {
+  if (pose.value.empty()) return intrinsics;
+  if (intrinsics.value.empty()) return pose;
+  ChartField out = pose;
+  for (std::size_t k = 0; k < out.value.size(); ++k) {
+    const float a = pose.value[k], b = intrinsics.value[k];
+    out.value[k] = std::isfinite(a) && std::isfinite(b) ? std::hypot(a, b) : std::isfinite(a) ? a : b;
+  }
+  return out;
+}
+
+ChartField blur_effect(const BlanchingSignal& signal, const BlanchingOptions& o) {
+  const ChartGrid& g = signal.y.grid;
+  ChartField out{g, std::vector<float>(g.size(), 0.f)};
+  if (g.size() == 0) return out;
+  cv::Mat v(g.height, g.width, CV_32F, cv::Scalar(0)), w(g.height, g.width, CV_32F, cv::Scalar(0));
+  for (int j = 0; j < g.height; ++j)
+    for (int i = 0; i < g.width; ++i)
+      if (const float y = signal.y.value[g.index(i, j)]; std::isfinite(y)) v.at<float>(j, i) = y, w.at<float>(j, i) = 1;
+  const double s = o.curvature_smoothing_mm / g.texel_mm;
+  cv::GaussianBlur(v, v, cv::Size(), s, s, cv::BORDER_CONSTANT);
+  cv::GaussianBlur(w, w, cv::Size(), s, s, cv::BORDER_CONSTANT);
+  const double half_b2 = 0.5 * (o.skin_blur_mm * o.skin_blur_mm + o.smoothing_mm * o.smoothing_mm) / (g.texel_mm * g.texel_mm);
+  auto ys = [&](int i, int j) { return v.at<float>(j, i) / w.at<float>(j, i); };
+  for (int j = 1; j + 1 < g.height; ++j)
+    for (int i = 1; i + 1 < g.width; ++i) {
+      bool seen = true;
+      for (auto [di, dj] : {std::pair{0, 0}, {1, 0}, {-1, 0}, {0, 1}, {0, -1}}) seen = seen && std::isfinite(signal.y.value[g.index(i + di, j + dj)]);
+      if (!seen) continue;
+      const double lap = ys(i + 1, j) + ys(i - 1, j) + ys(i, j + 1) + ys(i, j - 1) - 4 * ys(i, j);
+      out.value[g.index(i, j)] = static_cast<float>(half_b2 * lap);
+    }
+  return out;
+}
+
+ChartField sharpened_signal(const ChartField& y, const ChartField& blur) {
+  ChartField out = y;
+  for (std::size_t k = 0; k < out.value.size() && k < blur.value.size(); ++k)
+    if (std::isfinite(out.value[k])) out.value[k] -= blur.value[k];
+  return out;
+}
+
+ChartField signal_sigma(const BlanchingSignal& signal, const ChartField& position_mm, const ChartField& intrinsics_signal,
+                        const ChartField& blur) {
+  ChartField out = signal.sigma_y;
+  for (std::size_t k = 0; k < out.value.size(); ++k)
+    if (std::isfinite(out.value[k])) out.value[k] = std::hypot(out.value[k], blur.value[k]);
+  for (std::size_t k = 0; k < intrinsics_signal.value.size(); ++k)
+    if (std::isfinite(out.value[k]) && std::isfinite(intrinsics_signal.value[k])) out.value[k] = std::hypot(out.value[k], intrinsics_signal.value[k]);
+  if (position_mm.value.empty()) return out;
+  const ChartGrid& g = signal.y.grid;
+  const ChartField sharpened = sharpened_signal(signal.y, blur);
+  const auto& y = signal.y.value;
+  for (int j = 0; j < g.height; ++j)
+    for (int i = 0; i < g.width; ++i) {
+      const auto k = g.index(i, j);
+      if (!std::isfinite(y[k]) || !std::isfinite(position_mm.value[k])) continue;
+      const double gradient = gradient_norm(sharpened, i, j);
+      out.value[k] = static_cast<float>(std::hypot(static_cast<double>(out.value[k]), gradient * position_mm.value[k]));
+    }
+  return out;
+}
+
+void add_position_to_centres(std::vector<Hotspot>& hotspots, const std::vector<int>& labels, const ChartField& position_mm) {
+  if (position_mm.value.empty()) return;
+  std::vector<double> sum(hotspots.size() + 1, 0.0);
+  std::vector<long long> n(hotspots.size() + 1, 0);
+  for (std::size_t k = 0; k < labels.size(); ++k)
+    if (labels[k] > 0 && labels[k] <= static_cast<int>(hotspots.size()) && std::isfinite(position_mm.value[k]))
+      sum[labels[k]] += position_mm.value[k] * position_mm.value[k], ++n[labels[k]];
+  for (Hotspot& h : hotspots)
+    if (n[h.id] > 0 && std::isfinite(h.centre_of_pressure_sigma_mm))
+      h.centre_of_pressure_sigma_mm = std::sqrt(h.centre_of_pressure_sigma_mm * h.centre_of_pressure_sigma_mm + 2 * sum[h.id] / n[h.id]);
+}
+
+std::vector<std::uint8_t> calibrated_pressure(const PressureCalibration& calibration, bool spatial_noise, const AssessmentOptions& o,
+                                              Assessment& a) {
+  const ChartGrid& g = a.signal.y.grid;
+  std::vector<std::uint8_t> saturated(g.size(), 0);
+  a.calibrated = true;
+  a.pressure = {g, std::vector<float>(g.size(), kNaN)};
+  a.pressure_sigma = {g, std::vector<float>(g.size(), kNaN)};
+  a.pressure_status.assign(g.size(), static_cast<std::uint8_t>(PressureStatus::invalid));
+  // The pressure of the signal with the blur's first-order effect undone (blur_effect).
+  const ChartField sharpened = sharpened_signal(a.signal.y, a.blur_effect);
+  calibration.invert(sharpened.value, a.signal_sigma.value, a.pressure.value, a.pressure_sigma.value, a.pressure_status);
+  // Lossy captures and phases with their own geometry: the calibration's detection limit is its presses'
+  // noise, not the capture's; a texel not significant against this capture's own noise (spatial term
+  // included) is below detection. The gate is signal_threshold_sigmas (5), not the calibration's own
+  // detection_sigmas (3): at 3 σ the texture left in a held or lossy capture's signal became false places
+  // at 4.3 kPa (21 on AssessCli's wristband, 2 on LossyCli's), while the σ coverage gained 0.6 points.
+  if (spatial_noise)
+    for (std::size_t k = 0; k < g.size(); ++k)
+      if (a.pressure_status[k] == static_cast<std::uint8_t>(PressureStatus::ok) &&
+          !(a.signal.y.value[k] >= o.signal_threshold_sigmas * a.signal.sigma_y.value[k])) {
+        a.pressure_status[k] = static_cast<std::uint8_t>(PressureStatus::below_detection);
+        a.pressure_sigma.value[k] = kNaN;  // 0 kPa below detection is a bound, not an estimate
+      }
+  // Below detection is a measurement (less than the detection limit), shown and counted as 0 kPa;
+  // pressure_status keeps the flag. Unseen texels stay NaN.
+  for (std::size_t k = 0; k < g.size(); ++k)
+    if (a.pressure_status[k] == static_cast<std::uint8_t>(PressureStatus::below_detection)) a.pressure.value[k] = 0.f;
+  long long seen = 0, below = 0, sat = 0, est = 0;
+  double sum = 0;
+  for (std::size_t k = 0; k < g.size(); ++k) {
+    if (!std::isfinite(a.signal.y.value[k])) continue;
+    ++seen;
+    const auto st = static_cast<PressureStatus>(a.pressure_status[k]);
+    if (st == PressureStatus::below_detection) ++below;
+    if (st == PressureStatus::saturated) ++sat, saturated[k] = 1;
+    if (std::isfinite(a.pressure.value[k])) {
+      ++est;
+      sum += a.pressure.value[k];
+      a.peak_kpa = std::max(a.peak_kpa, static_cast<double>(a.pressure.value[k]));
+    }
+  }
+  a.below_detection_fraction = seen ? static_cast<double>(below) / seen : 0;
+  a.saturated_fraction = seen ? static_cast<double>(sat) / seen : 0;
+  a.mean_kpa = est ? sum / est : 0;
+  if (a.saturated_fraction > 0)
+    a.warnings.push_back(fixed_digits(100 * a.saturated_fraction, 2) + " % of the seen skin is beyond the calibration's range (saturated): "
+                         "the pressure there is at least the value shown");
+  return saturated;
+}
+
+}  // namespace clearfit
