@@ -9,6 +9,7 @@
 #include <Eigen/Core>
 
 #include "cli_support.hpp"
+#include "shared_fixture.hpp"
 
 namespace clearfit::cli_test {
 namespace {
@@ -28,34 +29,60 @@ class PhotometricCli : public CliTest {
   }
   static void TearDownTestSuite() { fs::remove_all(dir()); }
 
-  /// Renders the scene (seed 21, two hotspots) with `effects` (simulation keys) into dir()/name.
-  static fs::path render(const std::string& name, const std::string& effects, bool presses = false) {
-    const fs::path d = dir();
-    write_text(d / (name + ".yaml"),
-               "mesh: " + (kWristband / "wristband.obj").string() + "\ncontact: {group: contact}\ncamera: " +
-                   (kWristband / "camera.cameramodel").string() + "\nmap: {mode: adaptive}\n"
-                   "simulation:\n  seed: 21\n  format: huffyuv\n  scale: 0.25\n"
-                   "  timeline: {fps: 30, baseline_s: 1.5, press_s: 2}\n  skin: {tone: light}\n"
-                   "  pressure:\n    texel_mm: 0.1\n    sources:\n"
-                   "      - {name: a, type: gaussian, center_part_mm: [-6, 3, 30], peak_kpa: 14, sigma_mm: 1.6}\n"
-                   "      - {name: b, type: gaussian, center_part_mm: [6, -3, 30], peak_kpa: 10, sigma_mm: 1.2}\n"
-                   "  presses: {diameters_mm: [3], levels: 9, repetitions: 3}\n"
-                   "  baseline: {part: touching}\n" + effects);  // the photometric effects alone (the gap: baseline_gap_test.cpp)
+  /// The simulation scene (seed 21, two hotspots) with `effects` (simulation keys).
+  static std::string simulation(const std::string& effects) {
+    return "mesh: " + (kWristband / "wristband.obj").string() + "\ncontact: {group: contact}\ncamera: " +
+           (kWristband / "camera.cameramodel").string() + "\nmap: {mode: adaptive}\n"
+           "simulation:\n  seed: 21\n  format: huffyuv\n  scale: 0.25\n"
+           "  timeline: {fps: 30, baseline_s: 1.5, press_s: 2}\n  skin: {tone: light}\n"
+           "  pressure:\n    texel_mm: 0.1\n    sources:\n"
+           "      - {name: a, type: gaussian, center_part_mm: [-6, 3, 30], peak_kpa: 14, sigma_mm: 1.6}\n"
+           "      - {name: b, type: gaussian, center_part_mm: [6, -3, 30], peak_kpa: 10, sigma_mm: 1.2}\n"
+           "  presses: {diameters_mm: [3], levels: 9, repetitions: 3}\n"
+           "  baseline: {part: touching}\n" + effects;  // the photometric effects alone (the gap: baseline_gap_test.cpp)
+  }
+  /// Renders the scene with `effects` into `into`/name (default: dir()).
+  static fs::path render(const std::string& name, const std::string& effects, bool presses = false, const fs::path& into = dir()) {
+    write_text(into / (name + ".yaml"), simulation(effects));
     std::vector<std::string> args{"simulate", name + ".yaml", "--out", name, "--quiet", "--no-cache"};
     if (!presses) args.push_back("--no-presses");
-    const RunResult sim = run_clearfit(args, d, d, 300);
+    const RunResult sim = run_clearfit(args, into, into, 300);
     if (sim.exit_code != 0) throw std::runtime_error("simulate failed:\n" + sim.err);
-    return d / name;
+    return into / name;
   }
-  /// The clean captures and the wearer's calibration, rendered once.
+  /// The assessment scene of the captures in `caps` into the folder `out_name`, with the clean capture's
+  /// calibration unless `calibration` is empty.
+  static std::string assessment(const fs::path& caps, const std::string& out_name, const fs::path& calibration) {
+    return "mesh: " + (kWristband / "wristband.obj").string() + "\ncontact: {group: contact}\ncamera: " +
+           (caps / "camera.cameramodel").string() + "\nmap: {mode: adaptive}\noutputs: {folder: " + out_name +
+           ", texel_mm: 0.1}\ncaptures: {baseline: " + (caps / "baseline.mkv").string() + ", worn: " + (caps / "worn.mkv").string() +
+           ", window_frames: 30}\n" +
+           (calibration.empty() ? "" : "calibration: {pressure: " + calibration.string() + ", person: wearer-1}\n") +
+           "assess: {smoothing_mm: 0.5}\nbaseline: {part: touching}\n";
+  }
+  /// Runs `clearfit assess` on the scene file in `folder`; stdout and stderr kept in `capture`.
+  static RunResult run_assess(const fs::path& scene, const fs::path& folder, const fs::path& capture, const std::vector<std::string>& extra) {
+    std::vector<std::string> args{"assess", scene.filename().string(), "--quiet", "--no-cache", "--no-html"};
+    args.insert(args.end(), extra.begin(), extra.end());
+    return run_clearfit(args, folder, capture, 120);
+  }
+  /// The clean captures, the wearer's calibration and the clean captures' assessment (clean/out): made once
+  /// for all of ctest's processes (shared_fixture.hpp; two of this suite's tests read them).
   static fs::path clean() {
     static const fs::path c = [] {
-      const fs::path p = render("clean", "", true);
-      const RunResult cal = run_clearfit({"calibrate-pressure", "--presses", "clean/presses.csv", "--person", "wearer-1", "--camera",
-                                          "clean/camera.cameramodel", "--out", "clean/calibration.json"},
-                                         dir(), dir(), 60);
-      if (cal.exit_code != 0) throw std::runtime_error("calibrate-pressure failed:\n" + cal.err);
-      return p;
+      const std::string recipe = simulation("") + "\n---\n" + assessment("CAPTURES", "out", "CALIBRATION");
+      const fs::path d = shared_fixture("photometric-clean", recipe, {kWristband / "wristband.obj", kWristband / "camera.cameramodel"},
+                                        [](const fs::path& into) {
+        const fs::path caps = render("clean", "", true, into);
+        const RunResult cal = run_clearfit({"calibrate-pressure", "--presses", "clean/presses.csv", "--person", "wearer-1", "--camera",
+                                            "clean/camera.cameramodel", "--out", "clean/calibration.json"},
+                                           into, into, 60);
+        if (cal.exit_code != 0) throw std::runtime_error("calibrate-pressure failed:\n" + cal.err);
+        write_text(caps / "assess.yaml", assessment(caps, "out", caps / "calibration.json"));
+        const RunResult r = run_assess(caps / "assess.yaml", caps, into, {});
+        if (r.exit_code != 0) throw std::runtime_error("assessing the clean captures failed:\n" + r.err);
+      });
+      return d / "clean";
     }();
     return c;
   }
@@ -63,18 +90,12 @@ class PhotometricCli : public CliTest {
   /// unless `calibrated` is false; options appended.
   RunResult assess(const fs::path& caps, const std::string& out_name, const std::vector<std::string>& extra = {},
                    bool calibrated = true) {
-    const std::string calibration =
-        calibrated ? "calibration: {pressure: " + (clean() / "calibration.json").string() + ", person: wearer-1}\n" : "";
-    write_text(work() / (out_name + ".yaml"),
-               "mesh: " + (kWristband / "wristband.obj").string() + "\ncontact: {group: contact}\ncamera: " +
-                   (caps / "camera.cameramodel").string() + "\nmap: {mode: adaptive}\noutputs: {folder: " + out_name +
-                   ", texel_mm: 0.1}\ncaptures: {baseline: " + (caps / "baseline.mkv").string() + ", worn: " +
-                   (caps / "worn.mkv").string() + ", window_frames: 30}\n" + calibration + "assess: {smoothing_mm: 0.5}\nbaseline: {part: touching}\n");
-    std::vector<std::string> args{"assess", out_name + ".yaml", "--quiet", "--no-cache", "--no-html"};
-    args.insert(args.end(), extra.begin(), extra.end());
-    return run_clearfit(args, work(), root() / "capture", 120);
+    write_text(work() / (out_name + ".yaml"), assessment(caps, out_name, calibrated ? clean() / "calibration.json" : fs::path()));
+    return run_assess(work() / (out_name + ".yaml"), work(), root() / "capture", extra);
   }
-  nlohmann::json report(const std::string& out_name) { return nlohmann::json::parse(read_text(work() / out_name / "report.json")); }
+  /// The report of work()/out_name, or of the clean captures' shared assessment for "clean".
+  nlohmann::json report(const std::string& out_name) { return nlohmann::json::parse(read_text(folder(out_name) / "report.json")); }
+  fs::path folder(const std::string& out_name) { return out_name == "clean" ? clean() / "out" : work() / out_name; }
 
   /// Hotspots at 4.3 kPa: centres of pressure.
   static std::vector<Eigen::Vector3d> hotspots(const nlohmann::json& r) {
@@ -116,7 +137,6 @@ TEST_F(PhotometricCli, GlareIsMaskedAndLeavesNoFalseHotspot) {
   // One highlight in both captures, one only when worn (positions and strengths not tuned on).
   const fs::path caps = render("glare", "  glare:\n    - {center: [0.36, 0.6], sigma: 0.025, peak: 0.25, phases: both}\n"
                                         "    - {center: [0.66, 0.42], sigma: 0.03, peak: 0.15, phases: worn}\n");
-  ASSERT_EQ(assess(clean(), "clean").exit_code, 0);
   const RunResult r = assess(caps, "glare");
   ASSERT_EQ(r.exit_code, 0) << r;
   const RunResult off = assess(caps, "unmasked", {"--no-glare-mask"});
@@ -130,7 +150,7 @@ TEST_F(PhotometricCli, GlareIsMaskedAndLeavesNoFalseHotspot) {
   EXPECT_GT(rg["coverage"]["glare_masked_mm2"].get<double>(), 20.0);
   EXPECT_GT(rg["glare"]["regions"].get<int>(), 1);
   // Masked texels are unseen (NaN), never 0 kPa; the rest agrees with the capture without glare.
-  const cv::Mat pc = sim::read_npy_2d(work() / "clean" / "pressure.npy"), pg = sim::read_npy_2d(work() / "glare" / "pressure.npy");
+  const cv::Mat pc = sim::read_npy_2d(folder("clean") / "pressure.npy"), pg = sim::read_npy_2d(work() / "glare" / "pressure.npy");
   long long both = 0, seen_clean = 0;
   const double rho = pearson(pc, pg, both);
   for (int j = 0; j < pc.rows; ++j)
@@ -149,7 +169,6 @@ TEST_F(PhotometricCli, ExposureWhiteBalanceAndFlickerMoveNoHotspot) {
                                         "            {t_s: 3.0, gain: 0.95}]\n"
                                         "    drift_per_s: [-0.01, 0.01, 0.0]\n"
                                         "  flicker: {amplitude: 0.04, hz: 100, drift_hz_per_s: 0.4}\n");
-  ASSERT_EQ(assess(clean(), "clean").exit_code, 0);
   const RunResult r = assess(caps, "gains");
   ASSERT_EQ(r.exit_code, 0) << r;
   const auto hc = hotspots(report("clean")), hg = hotspots(report("gains"));
