@@ -261,6 +261,17 @@ void read_phases(const AssessmentScene& scene, const CaptureSources& captures, b
   }
 }
 
+/// Stage 1b: each capture's exposure, before anything is estimated from the captures (the baseline's
+/// gap, the registration, the glare), so that a black or saturated capture is refused as such and under
+/// its own file. The glare mask is not known yet: saturation is allowed up to the most glare that
+/// check_glare lets through (GlareOptions::max_fraction of the seen skin, which bounds its share of the roi),
+/// so this refuses only what check_captures would refuse too; check_captures repeats the check with the
+/// glare actually found.
+void refuse_unusable_exposure(const Phases& p, const Assessment& a, const AssessmentOptions& o) {
+  check_exposure(p.base_avg, a.baseline.source, "baseline", o, o.glare.max_fraction);
+  check_exposure(p.worn_avg, a.worn.source, "worn", o, o.glare.max_fraction);
+}
+
 /// How the baseline is read on the chart: its own geometry's map and inverse map (held off the
 /// skin, or no part), and the inverse map displaced by the phase registration.
 struct BaselineView {
@@ -515,6 +526,7 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
 
   Phases p;  // read in place: the time series' frame callbacks point into it
   read_phases(scene, captures, own_geometry, o, a, p);
+  refuse_unusable_exposure(p, a, o);
   BaselineView b;
   register_baseline(scene, own_geometry, p, o, a, b);
   check_captures(scene, p, b, o, a);

@@ -61,11 +61,26 @@ class NumericalLimitsCli : public CliTest {
       ASSERT_TRUE(cv::imwrite((work() / dir / name).string(), m));
     }
   }
-  // assess on the slab with the given capture folders: exit 2 naming `names`, or 0 with finite outputs.
-  void assess_is_clean(const std::string& baseline, const std::string& worn, const std::vector<std::string>& names) {
+  // assess on the slab refuses the captures: exit 2, the error names the capture folder `at_fault` and
+  // says each of `says`, and no output folder is left.
+  void assess_refuses(const std::string& baseline, const std::string& worn, const std::string& at_fault,
+                      const std::vector<std::string>& says) {
+    write_scene(baseline, worn);
+    const RunResult r = run({"assess", "s.yaml", "--no-html", "--no-cache"});
+    ASSERT_EQ(r.exit_code, 2) << r;
+    EXPECT_NE(r.err.find("clearfit: error: " + at_fault + ": "), std::string::npos) << "the error should name " << at_fault << "\n" << r;
+    for (const auto& s : says) EXPECT_NE(r.err.find(s), std::string::npos) << "stderr should say '" << s << "'\n" << r;
+    EXPECT_FALSE(prints_non_finite(r.err)) << r;
+    EXPECT_FALSE(fs::exists(work() / "out")) << r;
+  }
+  void write_scene(const std::string& baseline, const std::string& worn) {
     write_text(work() / "s.yaml", "mesh: slab.obj\ncamera: cam.cameramodel\ncontact: {group: contact}\nior: 1.49\n"
                                   "captures: {baseline: " + baseline + ", worn: " + worn + ", window_frames: 3}\n"
                                   "outputs: {folder: out, texel_mm: 0.2}\n");
+  }
+  // assess on the slab with the given capture folders: exit 2 naming `names`, or 0 with finite outputs.
+  void assess_is_clean(const std::string& baseline, const std::string& worn, const std::vector<std::string>& names) {
+    write_scene(baseline, worn);
     const RunResult r = run({"assess", "s.yaml", "--no-html", "--no-cache"});
     std::cout << baseline << " / " << worn << ": exit " << r.exit_code << "\n" << r.err.substr(0, 400) << "\n";
     EXPECT_FALSE(prints_non_finite(r.out)) << r;
@@ -88,16 +103,17 @@ TEST_F(NumericalLimitsCli, BlackAndSaturatedCaptures) {
   frames("black", 6, 160, 120, cv::Scalar(0, 0, 0));
   frames("white", 6, 160, 120, cv::Scalar(255, 255, 255));
   frames("grey", 6, 160, 120, cv::Scalar(120, 140, 170));
-  assess_is_clean("black", "black", {"black"});
-  fs::remove_all(work() / "out");
-  assess_is_clean("white", "white", {"white", "shows no skin texture at all"});
-  fs::remove_all(work() / "out");
-  assess_is_clean("grey", "black", {"black"});
-  fs::remove_all(work() / "out");
-  assess_is_clean("black", "grey", {"black"});
-  fs::remove_all(work() / "out");
-  // Named as the baseline's gap stage sees it (the not-worn capture's file, the worn capture's defect).
-  assess_is_clean("grey", "white", {"grey", "the worn capture shows no skin texture at all"});
+  // Exposure is checked before anything is estimated from the captures (the baseline's gap, the
+  // registration, the glare): the capture at fault is named, with its defect and what to do.
+  const std::string dark = "capture is too dark: mean green 0.0 of 255", raise = "raise the exposure or the light";
+  const std::string bright = "capture is overexposed: 100.0 % of the pixels that see the skin are saturated";
+  const std::string lower = "lower the exposure or the light";
+  assess_refuses("black", "black", "black", {"the baseline " + dark, raise});
+  assess_refuses("white", "white", "white", {"the baseline " + bright, lower});
+  assess_refuses("grey", "black", "black", {"the worn " + dark, raise});
+  assess_refuses("black", "grey", "black", {"the baseline " + dark, raise});
+  assess_refuses("grey", "white", "white", {"the worn " + bright, lower});
+  assess_refuses("white", "grey", "white", {"the baseline " + bright, lower});
 }
 
 TEST_F(NumericalLimitsCli, SinglePixelFramesAndCamera) {
