@@ -14,6 +14,10 @@
 #include <clearfit/geometry/import.hpp>
 #include <clearfit/geometry/shapes.hpp>
 
+#include <opencv2/core.hpp>
+#include <opencv2/imgcodecs.hpp>
+
+#include <cmath>
 #include <cstring>
 
 namespace clearfit::cli_test {
@@ -36,6 +40,20 @@ const std::string kSim = "simulation:\n  format: png\n  timeline: {fps: 10, base
                          "  presses: {diameters_mm: [2], levels: 6, repetitions: 2}\n";
 const std::string kPly = "ply\nformat ascii 1.0\nelement vertex 3\nproperty float x\nproperty float y\nproperty float z\n";
 const std::string kPresses = "trial,indenter_diameter_mm,force_n,mean_pressure_kpa,signal\n";
+
+/// A force gauge's log at 10 Hz: `presses` presses of 3 s (1.5 + 0.5 k N, a little noise so that no force repeats
+/// exactly, as a clipped gauge's would) after rests of 4 s; `clipped` holds every press at exactly 5 N instead.
+std::string force_log(int presses, bool clipped = false) {
+  std::string csv = "time_s,force_n\n";
+  int i = 0;
+  for (int k = 0; k <= presses; ++k)
+    for (int j = 0; j < (k < presses ? 70 : 40); ++j, ++i) {
+      const bool pressed = k < presses && j >= 40;
+      const double f = !pressed ? 0.001 * std::sin(1.3 * i) : clipped ? 5.0 : 1.5 + 0.5 * k + 0.002 * std::sin(1.7 * i);
+      csv += std::to_string(0.1 * i) + "," + std::to_string(f) + "\n";
+    }
+  return csv;
+}
 
 std::string binary_stl_claiming(std::uint32_t triangles) {
   std::string s(80, ' ');
@@ -218,6 +236,22 @@ std::vector<Case> simulate_and_assess_cases() {
          f.push_back({"none", "<dir>"});
          return f;
        }(), assess_args, {"none"}},
+      // the captures as a whole (fill() makes dark/, bright/ and flat/: 3 frames of one colour; shared() sim/glare/)
+      {"captures", "baseline capture too dark (black frames)", assess("baseline: dark, worn: sim/worn"), assess_args,
+       {"dark: frames", "the baseline capture is too dark", "raise the exposure"}},
+      {"captures", "worn capture overexposed (white frames)", assess("baseline: sim/baseline, worn: bright"), assess_args,
+       {"bright: frames", "the worn capture is overexposed", "lower the exposure"}},
+      {"captures", "worn capture mostly glare", assess("baseline: sim/glare/baseline, worn: sim/glare/worn", "baseline: {part: touching}\n"),
+       assess_args,
+       {"sim/glare/worn", "worn capture", "is mostly glare", "move the light or the camera"}},
+      {"captures", "held baseline whose gap cannot be estimated (skin without texture)", assess("baseline: flat, worn: sim/worn"), assess_args,
+       {"flat: baseline.gap_mm: auto", "(held) in the not-worn capture cannot be estimated", "shows no skin texture", "give baseline.gap_mm"}},
+      {"captures", "absent part: baseline gap that cannot be estimated", assess("baseline: flat, worn: sim/worn", "baseline: {part: absent}\n"),
+       assess_args, {"flat: baseline.gap_mm: auto", "(absent) in the not-worn capture cannot be estimated", "give baseline.gap_mm"}},
+      {"captures", "one video for both phases that shows no press", assess("both: grey.mkv"), assess_args,
+       {"grey.mkv", "shows no press", "give captures.baseline and captures.worn"}},
+      {"captures", "one video for both phases of a single frame", assess("both: one"), assess_args,
+       {"one", "too few to hold a baseline and a press"}},
       {"calibration", "calibration with 1e309", [&] {
          auto f = assess(good, "calibration: {pressure: big.json, person: p1}\n");
          f.push_back({"big.json", "{\"schema\": \"clearfit.pressure-calibration/1\", \"p50_kpa\": 1e309}"});
@@ -245,6 +279,8 @@ std::vector<Case> calibration_cases() {
     return v;
   };
   const std::vector<std::string> cal_p{"calibrate-pressure", "--presses", "p.csv", "--person", "p1", "--out", "cal.json"};
+  const std::vector<std::string> session{"presses", "--video", "grey.mkv", "--force-log", "f.csv", "--camera", "cam.cameramodel",
+                                         "--indenter-radius-mm", "2.5", "--slab-mm", "3", "--out", "p.csv"};
   auto presses = [&](const std::string& row) {
     std::string csv = kPresses;
     for (int k = 1; k <= 8; ++k) csv += std::to_string(k) + ",3," + std::to_string(0.01 * k) + ",," + std::to_string(0.01 * k) + "\n";
@@ -286,6 +322,28 @@ std::vector<Case> calibration_cases() {
       {"presses", "a folder for the presses file", {{"p.csv", "<dir>"}}, cal_p, {"p.csv"}},
       {"output", "calibrate-pressure --out under a file", {{"f", "x"}, {"p.csv", presses("")}},
        {"calibrate-pressure", "--presses", "p.csv", "--person", "p1", "--out", "f/cal.json"}, {"f/cal.json", "is a file"}},
+      // ---- presses: the session's force log and video (the log is read first; grey.mkv: 5 frames)
+      {"force log", "missing force log", {}, session, {"f.csv", "cannot be read"}},
+      {"force log", "empty force log", {{"f.csv", ""}}, session, {"f.csv", "is empty"}},
+      {"force log", "header without units", {{"f.csv", "time,force\n0,0\n"}}, session, {"f.csv", "line 1 (header)", "no time column with a unit"}},
+      {"force log", "force NaN", {{"f.csv", "time_s,force_n\n0,0\n0.1,nan\n"}}, session, {"f.csv", "line 3", "the force 'nan' is not a finite number"}},
+      {"force log", "time going back", {{"f.csv", "time_s,force_n\n0,0\n0.1,0\n0.05,0\n"}}, session,
+       {"f.csv", "line 4", "is not after the previous sample's"}},
+      {"force log", "5 samples", {{"f.csv", "time_s,force_n\n0,0\n0.1,0\n0.2,0\n0.3,0\n0.4,0\n"}}, session,
+       {"f.csv", "holds 5 samples; at least 10 are needed"}},
+      {"force log", "gauge clipped", {{"f.csv", force_log(2, true)}}, session, {"f.csv", "reaches its maximum", "the gauge clipped"}},
+      {"force log", "no press", {{"f.csv", force_log(0)}}, session, {"f.csv", "shows no press"}},
+      {"force log", "2 presses", {{"f.csv", force_log(2)}}, session, {"f.csv", "holds 2 presses", "needs at least 4"}},
+      {"video", "session video of 5 frames", {{"f.csv", force_log(5)}, {"grey.mkv", "<shared>"}}, session,
+       {"grey.mkv", "holds 5 frames; a session needs many more"}},
+      {"options", "presses --indenter-radius-mm 0", {{"f.csv", force_log(5)}},
+       {"presses", "--video", "grey.mkv", "--force-log", "f.csv", "--camera", "cam.cameramodel", "--indenter-radius-mm", "0", "--slab-mm", "3",
+        "--out", "p.csv"},
+       {"--indenter-radius-mm", "radius in mm"}},
+      {"output", "presses --out in a missing folder", {{"f.csv", force_log(5)}},
+       {"presses", "--video", "grey.mkv", "--force-log", "f.csv", "--camera", "cam.cameramodel", "--indenter-radius-mm", "2.5", "--slab-mm", "3",
+        "--out", "no/p.csv"},
+       {"no/p.csv", "its folder does not exist"}},
       // ---- study, compare
       {"manifest", "missing manifest", {}, {"study", "run", "nope.yaml", "--out", "st"}, {"nope.yaml"}},
       {"manifest", "empty manifest", {{"m.yaml", ""}}, {"study", "run", "m.yaml", "--out", "st"}, {"m.yaml"}},
@@ -315,6 +373,17 @@ class BadInputs : public CliTest {
       if (sim.exit_code != 0) throw std::runtime_error("simulate failed:\n" + sim.err);
       const RunResult cal = run_clearfit({"calibrate-pressure", "--presses", "sim/presses.csv", "--person", "p1", "--out", "sim/cal.json"}, d, d, 60);
       if (cal.exit_code != 0) throw std::runtime_error("calibrate-pressure failed:\n" + cal.err);
+      // A worn capture mostly glare (sim/glare/): four lamps' reflections on the part over most of the view, not
+      // saturated (67 % of the seen skin masked), the baseline filmed through the part touching the skin, so that
+      // the glare check is what refuses it.
+      write_text(d / "glare.yaml", kScene + kSim + "  baseline: {part: touching}\n"
+                                        "  glare:\n"
+                                        "    - {center: [0.3, 0.3], sigma: 0.25, peak: 0.35, phases: worn}\n"
+                                        "    - {center: [0.7, 0.3], sigma: 0.25, peak: 0.35, phases: worn}\n"
+                                        "    - {center: [0.3, 0.7], sigma: 0.25, peak: 0.35, phases: worn}\n"
+                                        "    - {center: [0.7, 0.7], sigma: 0.25, peak: 0.35, phases: worn}\n");
+      const RunResult glare = run_clearfit({"simulate", "glare.yaml", "--out", "sim/glare", "--no-presses", "--quiet"}, d, d, 120);
+      if (glare.exit_code != 0) throw std::runtime_error("simulate (glare) failed:\n" + glare.err);
       return d / "sim";
     }();
     return dir;
@@ -343,6 +412,13 @@ class BadInputs : public CliTest {
     if (std::system(grey.c_str()) != 0) throw std::runtime_error("ffmpeg failed (install the ffmpeg package): " + grey);
     fs::create_directories(dir / "one");
     fs::copy(dir / "sim/baseline/frame_00000.png", dir / "one/frame_00000.png");
+    for (const auto& [name, bgr] : {std::pair{"dark", cv::Scalar(0, 0, 0)}, std::pair{"bright", cv::Scalar(255, 255, 255)},
+                                    std::pair{"flat", cv::Scalar(120, 140, 170)}}) {  // 3 frames of one colour
+      fs::create_directories(dir / name);
+      const cv::Mat frame(120, 160, CV_8UC3, bgr);
+      for (int i = 0; i < 3; ++i)
+        if (!cv::imwrite((dir / name / ("frame_0000" + std::to_string(i) + ".png")).string(), frame)) throw std::runtime_error("imwrite failed");
+    }
     fs::create_directories(dir / "mixed");
     fs::copy(dir / "sim/baseline/frame_00000.png", dir / "mixed/frame_00000.png");
     fs::copy(dir / "sim/baseline/frame_00001.png", dir / "mixed/frame_00001.png");
@@ -423,7 +499,7 @@ TEST_F(BadInputs, EveryCaseExitsTwoNamesTheDefectAndLeavesNothing) {
   for (auto& w : workers) w.join();
   std::set<std::string> all_commands;
   for (const auto& s : commands) all_commands.insert(s.begin(), s.end());
-  EXPECT_EQ(all_commands.size(), 10u) << ::testing::PrintToString(all_commands);
+  EXPECT_EQ(all_commands.size(), 11u) << ::testing::PrintToString(all_commands);
   const std::string md = markdown(cases);
   if (const char* w = std::getenv("CLEARFIT_WRITE_DOCS"); w && std::strcmp(w, "1") == 0) write_text(kDoc, md);
   EXPECT_EQ(read_text(kDoc), md) << "docs/bad-inputs.md differs from the table: run this test with CLEARFIT_WRITE_DOCS=1";
