@@ -1,5 +1,7 @@
 #include <clearfit/geometry/normals.hpp>
 
+#include "reliable_normal.hpp"
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
@@ -28,22 +30,6 @@ int find(std::vector<int>& parent, int i) {
   while (parent[i] != i) i = parent[i] = parent[parent[i]];
   return i;
 }
-// Unit normal of face f, or zero when the face is degenerate to rounding: its
-// cross product no larger than the error of computing it (a few ulp of the
-// largest coordinate times the longest edge). A vertex computed on an edge in
-// floating point leaves such a "zero-area" triangle whose normal would
-// otherwise be a unit vector of either sign, with an interior angle of up to π
-// to weigh it by.
-Vec3 reliable_normal(const Mesh& m, int f) {
-  const Vec3 cross = m.face_cross(f);
-  double coord = 0, edge = 0;
-  for (int k = 0; k < 3; ++k) {
-    coord = std::max(coord, m.corner(f, k).cwiseAbs().maxCoeff());
-    edge = std::max(edge, (m.corner(f, (k + 1) % 3) - m.corner(f, k)).norm());
-  }
-  const double len = cross.norm();
-  return len > 64 * std::numeric_limits<double>::epsilon() * coord * edge ? Vec3(cross / len) : Vec3::Zero();
-}
 // True when faces fi and fj of a vertex's fan (corners ki and kj at the vertex) share an edge there.
 bool share_edge(const Mesh& mesh, int fi, int ki, int fj, int kj) {
   const auto& ti = mesh.faces[fi];
@@ -63,7 +49,7 @@ CornerNormals compute_corner_normals(const Mesh& mesh, const NormalOptions& opti
   options.validate();
   const int nf = mesh.num_faces(), nv = mesh.num_vertices();
   std::vector<Vec3> face_n(nf);
-  for (int f = 0; f < nf; ++f) face_n[f] = reliable_normal(mesh, f);
+  for (int f = 0; f < nf; ++f) face_n[f] = detail::reliable_normal(mesh, f);
 
   // Vertex -> incident (face, corner) in CSR form.
   std::vector<int> start(nv + 1, 0);

@@ -3,6 +3,7 @@
 #include <clearfit/geometry/ray_index.hpp>
 
 #include "ray_index_internal.hpp"
+#include "reliable_normal.hpp"
 
 #include <algorithm>
 #include <cmath>
@@ -105,8 +106,15 @@ RayHit refine(const RayIndex& index, const Ray& ray, int face,
     hit.bary = w;
   }
   hit.point = o + hit.t * d;
-  hit.geometric_normal = mesh.face_normal(face);
   hit.shading_normal = index.normals().interpolate(face, hit.bary[0], hit.bary[1], hit.bary[2]);
+  // A face of zero area, exactly or to rounding (a vertex computed on an edge), has no side of its own:
+  // its right-hand normal is zero or rounding noise of either sign. The double test can still hit it (at
+  // its edges and corners, where the sheared coordinates round off the line), and it is the first hit
+  // there when its index is the lowest, so it takes its corner normals (a neighbour's, compute_corner_normals)
+  // for its orientation. Found by scripts/numerical-sweep.sh: a slab split at points on its edges gave
+  // back_face for a ray aimed exactly at such a point (ray 20871 of the sixth 40000-ray run).
+  hit.geometric_normal = detail::reliable_normal(mesh, face);
+  if (hit.geometric_normal.isZero(0)) hit.geometric_normal = hit.shading_normal;
   hit.front_facing = d.dot(hit.geometric_normal) < 0;
   return hit;
 }

@@ -27,11 +27,12 @@ class CgalIndex final : public RayIndex {
  public:
   CgalIndex(const Mesh& m, CornerNormals normals) : RayIndex(m, std::move(normals)) {
     for (const Vec3& v : m.vertices) scale_ = std::max(scale_, v.lpNorm<Eigen::Infinity>());
-    // Degenerate (collinear) faces are left out: CGAL's ray/triangle
-    // predicates require proper triangles, and such a face has no interior to hit.
+    // Every face, collinear ones included: the tree only bounds them (the search and the
+    // triangle test are ours, in double), and the double test can hit a collinear face at its
+    // corners, where it plugs the gap between neighbours whose edges meet it there (a point
+    // computed on an edge: left out, a ray aimed at such a corner passed between them).
     for (int f = 0; f < m.num_faces(); ++f) {
       K::Triangle_3 tri(point(m.corner(f, 0)), point(m.corner(f, 1)), point(m.corner(f, 2)));
-      if (tri.is_degenerate()) continue;
       triangles_.push_back(tri);
       face_of_.push_back(f);
     }

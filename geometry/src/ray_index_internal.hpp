@@ -34,7 +34,7 @@ TriangleTest test_triangle(const Vec3& origin, const Vec3& direction, const Vec3
 /// edge, or the ray lies in the face's plane) the barycentrics `hint` (or those
 /// of the plane hit, or the centroid) are clamped to the face, and t is the
 /// ray parameter of the point of the ray closest to that point of the face.
-/// Never NaN for a finite ray; the geometric normal is zero for a degenerate face.
+/// Never NaN for a finite ray; a face of zero area (to rounding) takes its corner normals as its geometric normal.
 RayHit refine(const RayIndex& index, const Ray& ray, int face,
               const std::optional<std::array<double, 3>>& hint);
 

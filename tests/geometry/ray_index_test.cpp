@@ -428,11 +428,61 @@ TEST_P(Backends, DegenerateAndSliverFacesGiveNoNaN) {
     EXPECT_NEAR(h.geometric_normal.norm(), 1.0, 1e-12);
   }
   EXPECT_GT(n_hits, static_cast<int>(rays.size()) / 5);
+  // Ray by ray against brute force (double precision on every face). Where both hit, the same t and point; a
+  // different face only on an edge both faces share, with the point on it (a tie: at scale 10 Embree gave face 7
+  // where brute force gave the sliver 3 on their edge y = 0 for 2 of 40000 rays, the same point to 2e-16).
+  // Embree alone may miss the needle (face 4, 1e-6 mm across at 1 to 4 mm: 3.5e-7 of the bounding radius R):
+  // its float ray lies off the double one by a few 2^-24·R, so a face thinner than that can slip past the
+  // float BVH (ray_index_embree.cpp, "Precision"); brute force and CGAL hit it. Measured: 84 of the 500 rays
+  // aimed at the needle missed at scale 1, 766 of 5000 at scale 10; nothing else is missed or added.
   const auto ref = cast(*make_ray_index(m, RayBackend::brute_force), rays);
-  int sliver = 0, sliver_ref = 0;
-  for (size_t i = 0; i < rays.size(); ++i) sliver += hits[i].face == 3, sliver_ref += ref[i].face == 3;
-  EXPECT_EQ(sliver, sliver_ref);
-  EXPECT_GT(sliver_ref, 0);
+  int needle_missed = 0, sliver = 0, ties = 0;
+  for (size_t i = 0; i < rays.size(); ++i) {
+    const RayHit &h = hits[i], &r = ref[i];
+    sliver += r.face == 3;
+    if (!h && r && r.face == 4 && GetParam() == RayBackend::embree) {
+      ++needle_missed;
+      continue;
+    }
+    ASSERT_EQ(bool(h), bool(r)) << "ray " << i << ": face " << h.face << ", brute force " << r.face;
+    if (!r) continue;
+    EXPECT_NEAR(h.t, r.t, 1e-12 * r.t) << "ray " << i;
+    EXPECT_LT((h.point - r.point).norm(), 1e-12) << "ray " << i;
+    if (h.face == r.face) continue;
+    ++ties;
+    std::vector<int> shared;
+    for (int a : m.faces[h.face])
+      if (std::count(m.faces[r.face].begin(), m.faces[r.face].end(), a)) shared.push_back(a);
+    ASSERT_EQ(shared.size(), 2u) << "ray " << i << ": faces " << h.face << " and " << r.face << " share no edge";
+    const Vec3 a = m.vertices[shared[0]], e = m.vertices[shared[1]] - a;
+    EXPECT_LT((r.point - a).cross(e).norm() / e.norm(), 1e-12) << "ray " << i << ": off the shared edge";
+  }
+  std::cout << to_string(GetParam()) << ": " << rays.size() << " rays, " << sliver << " on the sliver (brute force), " << ties
+            << " ties on a shared edge, " << needle_missed << " missed on the needle\n";
+  EXPECT_GT(sliver, 0);
+  EXPECT_LT(needle_missed, static_cast<int>(rays.size()) / 8 / 4);  // under a quarter of the 1 in 8 aimed at it off its plane
+}
+
+// A square split along its diagonal at a point computed on it (p = (a + b) / 2, on the line to rounding) leaves
+// face 0 = (a, b, p) of zero area. A ray aimed exactly at the corner b (the sweep's ray 20871, coordinates as it
+// had them) hits every face around b at t = 1 and, ties going to the lowest index, face 0, whose right-hand normal
+// is zero: it must still be front-facing, with its corner normals (the neighbours' +z) as its geometric normal.
+TEST_P(Backends, ZeroAreaFaceHitAtItsCornerTakesItsNeighboursNormal) {
+  Mesh m;
+  const Vec3 a(-6.6666666666666661, -6.6666666666666661, 3), b(6.6666666666666679, 6.6666666666666679, 3);
+  m.vertices = {a, b, 0.5 * a + 0.5 * b, {6.6666666666666679, -6.6666666666666661, 3}, {-6.6666666666666661, 6.6666666666666679, 3}};
+  m.faces = {{0, 1, 2}, {0, 3, 2}, {2, 3, 1}, {0, 1, 4}};
+  m.file_face = {0, 1, 2, 3};
+  ASSERT_LT(m.face_area(0), 1e-14);
+  const auto index = make_ray_index(m, GetParam());
+  const Ray r{{-0.52978105690134303, 1.5486800987381875, 13}, {7.1964477235680109, 5.1179865679284804, -10}};
+  const RayHit h = index->intersect(r);
+  ASSERT_TRUE(h);
+  std::cout << to_string(GetParam()) << ": face " << h.face << " at t = " << h.t << "\n";
+  EXPECT_NEAR(h.t, 1.0, 1e-14);
+  EXPECT_LT((h.point - b).norm(), 1e-13);
+  EXPECT_TRUE(h.front_facing) << "face " << h.face;
+  EXPECT_LT((h.geometric_normal - Vec3(0, 0, 1)).norm(), 1e-12) << "face " << h.face << ": " << h.geometric_normal.transpose();
 }
 
 TEST_P(Backends, MissesReturnFaceMinusOne) {

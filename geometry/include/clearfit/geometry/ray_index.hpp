@@ -25,7 +25,7 @@ struct RayHit {
   double t = 0;                    ///< origin + t * direction = point
   Vec3 point = Vec3::Zero();       ///< part frame, mm
   std::array<double, 3> bary{};    ///< weights of corners 0,1,2 of the face (sum 1)
-  Vec3 geometric_normal = Vec3::Zero();   ///< unit, right-hand (outward for an oriented mesh)
+  Vec3 geometric_normal = Vec3::Zero();   ///< unit, right-hand (outward if oriented); a face flat to rounding: its corner normals
   Vec3 shading_normal = Vec3::Zero();     ///< unit, interpolated corner normal
   bool front_facing = false;       ///< direction · geometric_normal < 0
   explicit operator bool() const { return face >= 0; }
@@ -55,8 +55,8 @@ class RayIndex {
   /// 2013), filling every RayHit field; no t-range check. If the double test
   /// misses the face (the ray passes just outside it, or lies in its plane), the
   /// barycentrics are clamped to the face and t is that of the ray point
-  /// closest to the clamped point. Never NaN; the geometric normal is zero only
-  /// for a zero-area face.
+  /// closest to the clamped point. Never NaN; a face of zero area (to rounding)
+  /// takes its corner normals as its geometric normal.
   RayHit refine_hit(const Ray& ray, int face) const;
 
  private:
