@@ -4,7 +4,7 @@
 #   scripts/bootstrap.sh test     install dependencies, build (Release), run the whole test suite (ctest)
 #   scripts/bootstrap.sh asan     same as test, in a separate AddressSanitizer + UBSan build (build-asan/)
 #   scripts/bootstrap.sh fuzz     install dependencies plus clang and libFuzzer's runtime, build every fuzz target (build-fuzz/)
-#   scripts/bootstrap.sh sanitize the readers under AddressSanitizer + UBSan (clang, build-sanitize/): the fuzz targets
+#   scripts/bootstrap.sh sanitize the readers under AddressSanitizer + UBSan (clang, build-sanitize/; CI runs it after test): the fuzz targets
 #                                 replay their seeds and regression inputs once, the readers' tests run (docs/fuzzing.md)
 #   scripts/bootstrap.sh deps     only install the dependencies
 # Idempotent and non-interactive. Needs root or sudo for apt-get.

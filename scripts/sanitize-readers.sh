@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
-# The readers under AddressSanitizer and UndefinedBehaviorSanitizer, as a second build
-# (docs/fuzzing.md, "The readers under the sanitizers"; not in CI yet: its figures are there).
+# The readers under AddressSanitizer and UndefinedBehaviorSanitizer, as a second build: CI's
+# second stage (.ci/run; docs/fuzzing.md, "The readers under the sanitizers", has its figures).
 # One clang build in build-sanitize/ with the fuzz build's flags (-O2 -g, ASan, UBSan,
 # -fno-sanitize-recover): the fuzz targets of every reader but the scene's (whose reader
 # compiles the simulator and the refraction map, 31 more translation units) and the test
