@@ -182,9 +182,36 @@ MotionRegistration::MotionRegistration(cv::Size image, const cv::Rect& roi, cons
     p.area = cv::Rect(r.x / ds, r.y / ds, r.width / ds, r.height / ds);
     patches_.push_back(p);
   }
+  skin_blur_.resize(patches_.size());
 }
 
-MotionRegistration::Region MotionRegistration::filtered(const cv::Mat& bgr, const cv::Rect& area_in, cv::Point shift) const {
+const MotionRegistration::SkinBlur& MotionRegistration::skin_blur(const cv::Rect& region, cv::Point shift, const cv::Rect& crop,
+                                                                 SkinBlur& cache) const {
+  if (cache.region == region && cache.shift == shift && cache.crop == crop && !cache.skin.empty()) return cache;
+  // The skin in this frame: the seen mask moved with the frame (pixels off the image: none).
+  SkinBlur fresh;  // new buffers: Regions handed out earlier keep theirs
+  fresh.region = region, fresh.shift = shift, fresh.crop = crop;
+  fresh.skin = cv::Mat::zeros(region.size(), CV_32F);
+  const cv::Rect from = (region - shift) & cv::Rect(0, 0, seen_.cols, seen_.rows);
+  if (from.area() > 0) seen_(from).convertTo(fresh.skin(from + shift - region.tl()), CV_32F, 1.0 / 255);
+  cv::Mat mask = fresh.skin, mask_low;
+  smooth(mask);
+  // Only the crop is blurred; its support is read from the whole mask (as blurring all of it and cropping).
+  cv::GaussianBlur(mask(crop), mask_low, cv::Size(), options_.highpass_sigma_px, 0, cv::BORDER_REPLICATE);
+  fresh.mask_div = cv::max(mask(crop), 1e-3f);
+  fresh.low_div = cv::max(mask_low, 1e-3f);
+  fresh.on_skin = mask(crop) > 0.99f;
+  cache = std::move(fresh);
+  return cache;
+}
+
+void MotionRegistration::smooth(cv::Mat& m) const {
+  if (options_.downsample == 2) cv::pyrDown(m, m);
+  if (options_.smooth_sigma_px > 0) cv::GaussianBlur(m, m, cv::Size(), options_.smooth_sigma_px, 0, cv::BORDER_REPLICATE);
+}
+
+MotionRegistration::Region MotionRegistration::filtered(const cv::Mat& bgr, const cv::Rect& area_in, cv::Point shift,
+                                                        SkinBlur& cache) const {
   Region out;
   const int ds = options_.downsample;
   const cv::Rect image_reg(0, 0, bgr.cols / ds, bgr.rows / ds);
@@ -201,36 +228,25 @@ MotionRegistration::Region MotionRegistration::filtered(const cv::Mat& bgr, cons
     auto* dst = full.ptr<float>(y);
     for (int x = 0; x < region.width; ++x) dst[x] = lut[src[x][2]] - rho * lut[src[x][1]];
   }
-  // The skin in this frame: the seen mask moved with the frame (pixels off the image: none).
-  cv::Mat skin;
-  if (!seen_.empty()) {
-    skin = cv::Mat::zeros(region.size(), CV_32F);
-    const cv::Rect from = (region - shift) & cv::Rect(0, 0, seen_.cols, seen_.rows);
-    if (from.area() > 0) seen_(from).convertTo(skin(from + shift - region.tl()), CV_32F, 1.0 / 255);
-  }
-  cv::Mat reg, low, mask, mask_low;
-  auto smooth = [&](cv::Mat& m, double sigma) {
-    if (m.empty()) return;
-    if (ds == 2) cv::pyrDown(m, m);
-    if (sigma > 0) cv::GaussianBlur(m, m, cv::Size(), sigma, 0, cv::BORDER_REPLICATE);
-  };
-  if (skin.empty()) {
-    reg = full;
-    smooth(reg, options_.smooth_sigma_px);
-    cv::GaussianBlur(reg, low, cv::Size(), options_.highpass_sigma_px, 0, cv::BORDER_REPLICATE);
-  } else {
-    // Normalised convolution: the skin's own smoothing, so what lies beyond its edge does not leak in.
-    reg = full.mul(skin), mask = skin;
-    smooth(reg, options_.smooth_sigma_px), smooth(mask, options_.smooth_sigma_px);
-    cv::GaussianBlur(reg, low, cv::Size(), options_.highpass_sigma_px, 0, cv::BORDER_REPLICATE);
-    cv::GaussianBlur(mask, mask_low, cv::Size(), options_.highpass_sigma_px, 0, cv::BORDER_REPLICATE);
-    reg /= cv::max(mask, 1e-3f), low /= cv::max(mask_low, 1e-3f);
-  }
-  const cv::Point reg_origin = region.tl() / ds;
-  const cv::Rect crop = area - reg_origin;
+  const cv::Rect crop = area - region.tl() / ds;  // the area in the (smoothed) region
   out.origin = area.tl();
-  out.f = cv::Mat(reg - low)(crop).clone();
-  if (!mask.empty()) out.skin = mask(crop) > 0.99f;
+  // The high-pass is read over the crop only; the Gaussian's support comes from the whole region
+  // (OpenCV reads a submatrix's surroundings from its parent), so the crop is as if all were blurred.
+  cv::Mat low;
+  if (seen_.empty()) {
+    smooth(full);
+    cv::GaussianBlur(full(crop), low, cv::Size(), options_.highpass_sigma_px, 0, cv::BORDER_REPLICATE);
+    out.f = full(crop) - low;
+    return out;
+  }
+  // Normalised convolution: the skin's own smoothing, so what lies beyond its edge does not leak in.
+  // The skin's terms change only when the region or the frame's integer shift does (cached per patch).
+  const SkinBlur& skin = skin_blur(region, shift, crop, cache);
+  cv::Mat reg = full.mul(skin.skin);
+  smooth(reg);
+  cv::GaussianBlur(reg(crop), low, cv::Size(), options_.highpass_sigma_px, 0, cv::BORDER_REPLICATE);
+  out.f = reg(crop) / skin.mask_div - low / skin.low_div;
+  out.skin = skin.on_skin;
   return out;
 }
 
@@ -261,7 +277,7 @@ MotionRegistration::Regions MotionRegistration::read(const cv::Mat& bgr, const S
       g.glare = true;
       return;
     }
-    g = filtered(bgr, box, cv::Point(ds * moved.x, ds * moved.y));
+    g = filtered(bgr, box, cv::Point(ds * moved.x, ds * moved.y), skin_blur_[k]);
   });
   return regions;
 }

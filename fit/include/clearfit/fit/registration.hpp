@@ -89,6 +89,8 @@ struct RegistrationResult {
 /// frames given to add_to_reference(), each moved back by its measured motion; the
 /// motions of those frames are measured again against the whole average when it is
 /// closed (close_reference()).
+///
+/// Not for two threads at once: measuring keeps each patch's skin terms for the next frame.
 class MotionRegistration {
  public:
   /// Patches of a grid over `roi` (clipped to the image; a patch that would leave it is moved inside).
@@ -135,9 +137,25 @@ class MotionRegistration {
     bool glare = false;
   };
   using Regions = std::vector<Region>;
+  /// A patch's skin terms of the normalised convolution for one region and integer shift (full-resolution
+  /// px): the moved seen mask over the region, and over `crop` (registration px in the region) the
+  /// divisors of the signal and of its blur and the pixels on the skin. They change only when the
+  /// region or the shift does, so each patch keeps the last ones.
+  struct SkinBlur {
+    cv::Rect region, crop;
+    cv::Point shift;
+    cv::Mat skin;                   ///< CV_32F, region size: the seen mask moved by `shift`
+    cv::Mat mask_div, low_div;      ///< CV_32F, crop size: max(smoothed mask, 1e-3) and max(its blur, 1e-3)
+    cv::Mat on_skin;                ///< CV_8U, crop size: smoothed mask > 0.99
+  };
+  /// `cache` when it holds these region, shift and crop, else `cache` refilled with them.
+  const SkinBlur& skin_blur(const cv::Rect& region, cv::Point shift, const cv::Rect& crop, SkinBlur& cache) const;
+  /// Brings a full-resolution image to the registered resolution (pyrDown) and smooths it (smooth_sigma_px).
+  void smooth(cv::Mat& m) const;
   /// Filtered image (registration resolution) over `area` (registration px, clipped to the image),
-  /// the skin's high-pass taken over the skin only (the seen mask moved by `shift`, full-resolution px).
-  Region filtered(const cv::Mat& bgr, const cv::Rect& area, cv::Point shift) const;
+  /// the skin's high-pass taken over the skin only (the seen mask moved by `shift`, full-resolution px;
+  /// its terms from the patch's `cache`).
+  Region filtered(const cv::Mat& bgr, const cv::Rect& area, cv::Point shift, SkinBlur& cache) const;
   /// Each patch's region of `bgr` where `expected` puts it, with a margin.
   Regions read(const cv::Mat& bgr, const Similarity& expected) const;
   /// The motion of the frame whose regions these are; with `warped`, each patch's frame moved
@@ -158,6 +176,9 @@ class MotionRegistration {
   std::vector<int> kept_call_;      ///< each kept frame's place among the add_to_reference() calls
   int calls_ = 0;
   int border_ = 0;                  ///< filter support, registration px
+  /// Per patch: the skin terms last used (filtered()). A cache written by read(), so one registration
+  /// is measured from one thread at a time (as read_capture does).
+  mutable std::vector<SkinBlur> skin_blur_;
 };
 
 }  // namespace clearfit
