@@ -59,17 +59,27 @@ class FrameQueue {
     cv_.notify_all();
     return true;
   }
+  /// Gives a frame's buffer back for a later frame to be decoded into (when nothing else refers to it).
+  void recycle(cv::Mat&& frame) {
+    if (frame.u == nullptr || frame.u->refcount != 1) return;
+    std::lock_guard lock(mutex_);
+    if (spare_.size() < 2) spare_.push_back(std::move(frame));
+  }
 
  private:
   void run() {
     try {
       for (;;) {
         cv::Mat frame;
+        {
+          std::lock_guard lock(mutex_);
+          if (!spare_.empty()) frame = std::move(spare_.back()), spare_.pop_back();
+        }
         if (!reader_.read(frame)) break;
         std::unique_lock lock(mutex_);
         cv_.wait(lock, [&] { return queue_.size() < 4 || stop_; });
         if (stop_) break;
-        queue_.emplace_back(std::move(frame), reader_.frame_name());  // each read fills a fresh Mat: no copy
+        queue_.emplace_back(std::move(frame), reader_.frame_name());  // each read fills its own Mat: no copy
         cv_.notify_all();
       }
     } catch (...) {
@@ -85,6 +95,7 @@ class FrameQueue {
   std::mutex mutex_;
   std::condition_variable cv_;
   std::deque<std::pair<cv::Mat, std::string>> queue_;
+  std::vector<cv::Mat> spare_;  ///< buffers given back by the consumer
   bool done_ = false, stop_ = false;
   std::exception_ptr error_;
   std::thread thread_;
@@ -349,7 +360,7 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
   References refs(first_reference, options, cv::Size(info.width, info.height), roi);
   const Vec2 roi_centre(roi.x + 0.5 * roi.width, roi.y + 0.5 * roi.height);
   FrameQueue queue(reader);
-  cv::Mat frame;
+  cv::Mat frame, last;
   std::string name;
   int n = 0;
   GreenSums green(roi, cv::Size(info.width, info.height));
@@ -434,8 +445,10 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
     sums.work_ms += ms_since(t_work);
     ++n;
     if (options.progress) options.progress(n, info.frames);
-    sums.last_frame = frame;
+    std::swap(last, frame);
+    queue.recycle(std::move(frame));  // the frame before: its buffer decodes a later one
   }
+  sums.last_frame = last;
   if (n == 0) throw InputError(source.string(), "", "holds no frames", "check the " + role + " capture");
   release_chunks(sums, options, n, static_cast<int>(sums.chunk_sum.size()));  // the last chunk too
   // A capture shorter than the reference's frames: the reference is what it holds.

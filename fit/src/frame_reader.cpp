@@ -184,7 +184,10 @@ struct VideoDecoder {
                                1 << 16, 1 << 16);
       sws_w = w, sws_h = h, sws_fmt = fmt;
     }
-    cv::Mat coded(h, w, sixteen ? CV_16UC3 : CV_8UC3);
+    // Upright frames are converted straight into `out` (its buffer reused when it has the size and type).
+    cv::Mat coded;
+    if (info.rotation_deg == 0) out.create(h, w, sixteen ? CV_16UC3 : CV_8UC3), coded = out;
+    else coded.create(h, w, sixteen ? CV_16UC3 : CV_8UC3);
     std::uint8_t* dst[4] = {coded.data, nullptr, nullptr, nullptr};
     int dst_stride[4] = {static_cast<int>(coded.step[0]), 0, 0, 0};
     sws_scale(sws, frame->data, frame->linesize, 0, h, dst, dst_stride);
@@ -193,7 +196,7 @@ struct VideoDecoder {
       case 90: cv::rotate(coded, out, cv::ROTATE_90_CLOCKWISE); break;
       case 180: cv::rotate(coded, out, cv::ROTATE_180); break;
       case 270: cv::rotate(coded, out, cv::ROTATE_90_COUNTERCLOCKWISE); break;
-      default: out = coded;
+      default: break;
     }
     return true;
   }
@@ -251,6 +254,7 @@ bool FrameReader::read(cv::Mat& bgr) {
   Impl& m = *impl_;
   cv::Mat frame;
   if (m.video) {
+    if (bgr.u != nullptr && bgr.u->refcount == 1) frame = bgr;  // nothing else sees bgr's buffer: decoded into it when it fits
     if (!m.video->read(m.info.source.string(), m.info, frame)) return false;
     m.last_name = "frame " + std::to_string(m.next);
   } else {

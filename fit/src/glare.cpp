@@ -9,6 +9,7 @@
 #include <opencv2/imgproc.hpp>
 
 #include <algorithm>
+#include <array>
 #include <cmath>
 #include <sstream>
 #include <stdexcept>
@@ -181,27 +182,60 @@ GlareMask detect_glare(const PhaseAverage& base, const PhaseAverage& worn, const
   return out;
 }
 
+namespace {
+
+/// Linear blue over green of each (blue, green) code pair, index 256·blue + green, as glare_fraction reads it.
+const std::vector<float>& blue_green_ratio_table() {
+  static const std::vector<float> table = [] {
+    const float* lut = srgb::to_linear_table8();
+    std::vector<float> t(65536);
+    for (int b = 0; b < 256; ++b)
+      for (int g = 0; g < 256; ++g) t[b * 256 + g] = lut[b] / std::max(lut[g], 1e-4f);
+    return t;
+  }();
+  return table;
+}
+
+}  // namespace
+
 double glare_fraction(const cv::Mat& bgr, const cv::Rect& patch) {
   const cv::Rect r = patch & cv::Rect(0, 0, bgr.cols, bgr.rows);
   if (r.area() == 0) return 0;
   const float* lut = srgb::to_linear_table8();
-  std::vector<float> ratio, green;
-  ratio.reserve(r.area()), green.reserve(r.area());
-  for (int y = r.y; y < r.br().y; ++y)
+  const std::vector<float>& ratio_of = blue_green_ratio_table();
+  // The medians (the value of rank n/2) from histograms, exactly: green is an increasing function
+  // of its code, the ratio a function of the (blue, green) pair; the pairs seen are few.
+  thread_local std::vector<int> pair_count(65536, 0);
+  thread_local std::vector<int> pairs;
+  pairs.clear();
+  std::array<int, 256> green_count{};
+  for (int y = r.y; y < r.br().y; ++y) {
+    const auto* row = bgr.ptr<cv::Vec3b>(y);
     for (int x = r.x; x < r.br().x; ++x) {
-      const cv::Vec3b p = bgr.at<cv::Vec3b>(y, x);
-      green.push_back(lut[p[1]]);
-      ratio.push_back(lut[p[0]] / std::max(lut[p[1]], 1e-4f));
+      const int k = row[x][0] * 256 + row[x][1];
+      if (pair_count[k]++ == 0) pairs.push_back(k);
+      ++green_count[row[x][1]];
     }
-  const double c = median_of(ratio), g = median_of(green);
+  }
+  const long long rank = r.area() / 2;
+  long long below = 0;
+  int green_code = 0;
+  while (below + green_count[green_code] <= rank) below += green_count[green_code++];
+  std::sort(pairs.begin(), pairs.end(), [&](int a, int b) { return ratio_of[a] < ratio_of[b]; });
+  below = 0;
+  std::size_t i = 0;
+  while (below + pair_count[pairs[i]] <= rank) below += pair_count[pairs[i++]];
+  const double c = ratio_of[pairs[i]], g = lut[green_code];
+  for (const int k : pairs) pair_count[k] = 0;
   const double whiter = c + 0.5 * (1 - c);
   long long n = 0;
-  std::size_t k = 0;
-  for (int y = r.y; y < r.br().y; ++y)
-    for (int x = r.x; x < r.br().x; ++x, ++k) {
-      const cv::Vec3b p = bgr.at<cv::Vec3b>(y, x);
-      n += std::max({p[0], p[1], p[2]}) >= 250 || (ratio[k] >= whiter && green[k] >= 1.2 * g);
+  for (int y = r.y; y < r.br().y; ++y) {
+    const auto* row = bgr.ptr<cv::Vec3b>(y);
+    for (int x = r.x; x < r.br().x; ++x) {
+      const cv::Vec3b p = row[x];
+      n += std::max({p[0], p[1], p[2]}) >= 250 || (ratio_of[p[0] * 256 + p[1]] >= whiter && lut[p[1]] >= 1.2 * g);
     }
+  }
   return static_cast<double>(n) / r.area();
 }
 

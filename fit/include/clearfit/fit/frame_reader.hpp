@@ -43,6 +43,8 @@ class FrameReader {
   FrameReader& operator=(const FrameReader&) = delete;
   const CaptureInfo& info() const;
   /// The next frame (BGR, 8- or 16-bit as info().bit_depth says; grey frames are expanded); false at the end.
+  /// A video frame is decoded into `bgr`'s buffer when it has the size and type and nothing else refers to
+  /// it (no page faults for a fresh buffer per frame); otherwise `bgr` gets a new one.
   bool read(cv::Mat& bgr);
   /// Name of the frame last read (file name, or "frame N").
   std::string frame_name() const;
