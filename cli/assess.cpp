@@ -106,6 +106,7 @@ Run add_assess(CLI::App& app) {
                    {"timeseries_max_mb", sc.assess.timeseries.options.max_mb},
                    {"baseline_part", to_string(sc.baseline.part)},
                    {"baseline_gap_mm", sc.baseline.gap_mm},
+                   {"baseline_max_shift_px", sc.baseline.search.max_shift_px},
                    {"person", sc.calibration.person}};
     for (const auto& n : notes) std::cerr << "clearfit: note: " << n << "\n";
     ctx.run_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -85,6 +85,7 @@ std::unique_ptr<Prepared> prepare(AssessOpts& o) {
   ao.glare = as.glare.options;
   ao.phase_registration = as.phase_registration.options;
   ao.vignetting = as.vignetting.options;
+  ao.gap = sc.baseline.search;
   ao.timeseries = as.timeseries.options;
   ao.normalise_gains = as.normalise_exposure;
   p->sources = {cap.baseline, cap.worn, cap.both};

@@ -237,6 +237,9 @@ void BaselineSection::bind(SceneFields& f) {
            "How the not-worn capture was filmed: held (the part just off the skin), absent (no part) or touching (as when worn)");
   f.key("gap_mm", gap_mm, "--baseline-gap-mm",
         "Held or absent: the skin's distance beyond the contact surface in the not-worn capture, mm, or auto (estimated)");
+  f.key("max_shift_px", search.max_shift_px, "--baseline-max-shift-px",
+        "Held or absent: the largest move of the skin texture between the phases' first frames (camera or skin) measured with "
+        "the gap, px (0: not measured)");
 }
 
 std::optional<double> BaselineSection::gap() const {
@@ -245,6 +248,11 @@ std::optional<double> BaselineSection::gap() const {
 }
 
 void BaselineSection::validate() const {
+  try {
+    search.validate();
+  } catch (const std::invalid_argument& e) {
+    throw SceneRuleError("", e.what());
+  }
   if (gap_mm == "auto") return;
   std::size_t used = 0;
   double g = NAN;

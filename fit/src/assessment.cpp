@@ -120,6 +120,7 @@ RefractionMap baseline_geometry(const AssessmentScene& scene, const PhaseAverage
     r.gap_mm = e.gap_mm;
     r.gap_sigma_mm = e.sigma_mm;
     r.gap_estimated = e.estimated;
+    r.phase_shift_measured = e.phase_shift_measured, r.phase_shift_px = e.phase_shift_px, r.phase_shift_sigma_px = e.phase_shift_sigma_px;
     // Does the gap matter? Over the searched range it moves the baseline's skin points by shift · range.
     const double moved_mm = e.shift_mm_per_mm * o.gap.max_mm;
     if (!e.estimated) {

@@ -17,6 +17,9 @@ namespace {
 constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 constexpr int kBlockPx = 32;
 constexpr std::size_t kMaxSamples = 150000;  ///< more baseline pixels are subsampled evenly
+/// The phases' move is measured only where the texture's blur weight (the share of seen skin under
+/// the Gaussian) is at least this: next to the edge of the seen skin the texture is extrapolated.
+constexpr float kInteriorWeight = 0.8f;
 
 std::string fmt(double v, int digits = 2) { return fixed_digits(v, digits); }
 
@@ -48,10 +51,23 @@ float bilinear(const cv::Mat& m, double x, double y) {
 /// pixel's baseline texture and log green, and its block.
 struct Samples {
   std::vector<std::uint32_t> ray;
-  std::vector<float> texture, log_green;
+  std::vector<float> texture, log_green;  ///< at the sample's position moved by `shift`
   std::vector<int> block;
   int blocks = 0;
+  cv::Mat tex, lg;                ///< the baseline's texture and log green (roi image, NaN off the seen skin)
+  std::vector<cv::Point2f> at;    ///< each sample's position in tex, unmoved
+  std::vector<char> interior;     ///< the texture's blur saw mostly seen skin around it (not next to the skin's edge)
+  Vec2 shift = Vec2::Zero();      ///< the baseline image read this much further (px): the motion between the phases
 };
+
+/// Reads every sample's texture and log green at its position moved by `d`.
+void move_samples(Samples& s, const Vec2& d) {
+  s.shift = d;
+  for (std::size_t i = 0; i < s.at.size(); ++i) {
+    const double x = s.at[i].x + d.x(), y = s.at[i].y + d.y();
+    s.texture[i] = bilinear(s.tex, x, y), s.log_green[i] = bilinear(s.lg, x, y);
+  }
+}
 
 /// True when the finite values are all one value (or there are none): a capture without any skin
 /// texture, e.g. saturated or black where it sees the skin.
@@ -119,7 +135,10 @@ Samples baseline_samples(const BaselineRays& rays, const PhaseAverage& base, dou
     int& b = block_id[static_cast<std::size_t>(y / kBlockPx) * bx + x / kBlockPx];
     if (b < 0) b = s.blocks++;
     s.ray.push_back(static_cast<std::uint32_t>(ray)), s.texture.push_back(t), s.log_green.push_back(l), s.block.push_back(b);
+    s.at.emplace_back(static_cast<float>(qx), static_cast<float>(qy));
+    s.interior.push_back(bilinear(wb, qx, qy) >= kInteriorWeight);
   }
+  s.tex = tex, s.lg = lg;
   return s;
 }
 
@@ -129,7 +148,7 @@ double correlation(const Samples& s, const std::vector<Vec2>& uv, const ChartFie
   double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
   long long n = 0;
   for (std::size_t i = 0; i < s.ray.size(); ++i) {
-    if (!use[i] || !uv[i].allFinite()) continue;
+    if (!use[i] || !uv[i].allFinite() || !std::isfinite(s.texture[i])) continue;
     const double y = worn_texture.sample(uv[i]);
     if (!std::isfinite(y)) continue;
     const double x = s.texture[i];
@@ -148,7 +167,7 @@ std::vector<char> not_pressed(const Samples& s, const std::vector<Vec2>& uv, con
   std::vector<float> sum(g.size(), 0.f), cnt(g.size(), 0.f);
   std::vector<float> ratio(s.ray.size(), kNaN);
   for (std::size_t i = 0; i < s.ray.size(); ++i) {
-    if (!uv[i].allFinite()) continue;
+    if (!uv[i].allFinite() || !std::isfinite(s.log_green[i])) continue;
     const float w = worn_log.sample(uv[i]);
     if (!std::isfinite(w)) continue;
     ratio[i] = w - s.log_green[i];
@@ -192,7 +211,7 @@ struct Fine {
 };
 Fine fine_fit(const BaselineRays& rays, const Samples& s, const ChartField& worn_texture, const std::vector<char>& keep,
               double centre, const GapSearchOptions& o) {
-  const double d = o.step_mm / 4;
+  const double d = o.step_mm / 2;
   const double lo = std::clamp(centre - 2 * d, 0.0, o.max_mm - 4 * d);
   std::vector<double> gaps;
   std::vector<std::vector<Vec2>> uv;
@@ -200,11 +219,13 @@ Fine fine_fit(const BaselineRays& rays, const Samples& s, const ChartField& worn
   // Pixels compared at every gap.
   std::vector<char> use = keep;
   std::vector<std::array<float, 5>> y(s.ray.size());
-  for (std::size_t i = 0; i < s.ray.size(); ++i)
+  for (std::size_t i = 0; i < s.ray.size(); ++i) {
+    if (!std::isfinite(s.texture[i])) use[i] = 0;
     for (int j = 0; j < 5 && use[i]; ++j) {
       y[i][j] = uv[j][i].allFinite() ? worn_texture.sample(uv[j][i]) : kNaN;
       if (!std::isfinite(y[i][j])) use[i] = 0;
     }
+  }
   Fine f;
   f.match = correlation(s, uv[2], worn_texture, use, &f.pixels);
   double sxy = 0, syy = 0;
@@ -249,6 +270,101 @@ Fine fine_fit(const BaselineRays& rays, const Samples& s, const ChartField& worn
   return f;
 }
 
+/// Normalised correlation of the baseline texture read `d` further with the worn values `y`, over every `every`-th sample.
+double shifted_correlation(const Samples& s, const std::vector<float>& y, const Vec2& d, int every) {
+  double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
+  long long n = 0;
+  for (std::size_t i = 0; i < y.size(); i += every) {
+    if (!std::isfinite(y[i])) continue;
+    const double x = bilinear(s.tex, s.at[i].x + d.x(), s.at[i].y + d.y());
+    if (!std::isfinite(x)) continue;
+    sx += x, sy += y[i], sxx += x * x, syy += double(y[i]) * y[i], sxy += x * y[i], ++n;
+  }
+  if (n < 100) return -1;
+  const double vx = sxx - sx * sx / n, vy = syy - sy * sy / n;
+  return vx > 0 && vy > 0 ? (sxy - sx * sy / n) / std::sqrt(vx * vy) : -1;
+}
+
+/// Per block, the normal equations of Gauss–Newton on (d, gain) for the residual
+/// baseline texture(at + d) − gain · y.
+using ShiftNormals = std::vector<std::pair<Eigen::Matrix3d, Eigen::Vector3d>>;
+ShiftNormals shift_normals(const Samples& s, const std::vector<float>& y, const Vec2& d, double gain) {
+  ShiftNormals n(s.blocks, {Eigen::Matrix3d::Zero(), Eigen::Vector3d::Zero()});
+  for (std::size_t i = 0; i < y.size(); ++i) {
+    if (!std::isfinite(y[i])) continue;
+    const double x = s.at[i].x + d.x(), yy = s.at[i].y + d.y();
+    const double t = bilinear(s.tex, x, yy);
+    const double gx = bilinear(s.tex, x + 0.5, yy) - bilinear(s.tex, x - 0.5, yy);
+    const double gy = bilinear(s.tex, x, yy + 0.5) - bilinear(s.tex, x, yy - 0.5);
+    if (!std::isfinite(t) || !std::isfinite(gx) || !std::isfinite(gy)) continue;
+    const Eigen::Vector3d J(gx, gy, -y[i]);
+    auto& [A, b] = n[s.block[i]];
+    A += J * J.transpose(), b += J * (t - gain * y[i]);
+  }
+  return n;
+}
+
+/// The step that solves the summed normal equations of `which` blocks (NaN when singular).
+Eigen::Vector3d shift_step(const ShiftNormals& n, const std::vector<int>& which) {
+  Eigen::Matrix3d A = Eigen::Matrix3d::Zero();
+  Eigen::Vector3d b = Eigen::Vector3d::Zero();
+  for (int k : which) A += n[k].first, b += n[k].second;
+  const Eigen::LDLT<Eigen::Matrix3d> ldlt(A);
+  if (ldlt.info() != Eigen::Success || !(A.trace() > 0) || ldlt.rcond() < 1e-9) return Eigen::Vector3d::Constant(NAN);
+  return -ldlt.solve(b);
+}
+
+/// The motion between the phases' references (GapSearchOptions::max_shift_px): the shift of the
+/// baseline image that best carries its texture onto the worn texture at `uv` (one gap), over the
+/// samples `keep`. The best whole-pixel shift by correlation (every fourth sample), then Gauss–Newton
+/// on the shift and a gain; σ: the spread of the step over block-bootstrap resamplings at the optimum.
+struct ShiftFit {
+  Vec2 shift = Vec2::Zero(), sigma = Vec2::Constant(NAN);
+  bool converged = false;
+};
+ShiftFit fit_shift(const Samples& s, const std::vector<Vec2>& uv, const ChartField& worn_texture, const std::vector<char>& keep,
+                   const GapSearchOptions& o) {
+  std::vector<float> y(s.ray.size(), kNaN);
+  for (std::size_t i = 0; i < y.size(); ++i)
+    if (keep[i] && s.interior[i] && uv[i].allFinite()) y[i] = worn_texture.sample(uv[i]);
+  ShiftFit f;
+  Vec2 d = Vec2::Zero();
+  double best = shifted_correlation(s, y, d, 4);
+  const int reach = static_cast<int>(std::ceil(o.max_shift_px));
+  for (int dy = -reach; dy <= reach; ++dy)
+    for (int dx = -reach; dx <= reach; ++dx)
+      if (dx * dx + dy * dy <= reach * reach)
+        if (const double c = shifted_correlation(s, y, Vec2(dx, dy), 4); c > best) best = c, d = Vec2(dx, dy);
+  if (!(best > o.min_match)) return f;
+  const Vec2 start = d;
+  double gain = 1;
+  std::vector<int> all(s.blocks);
+  for (int k = 0; k < s.blocks; ++k) all[k] = k;
+  for (int iter = 0; iter < 20 && !f.converged; ++iter) {
+    const Eigen::Vector3d step = shift_step(shift_normals(s, y, d, gain), all);
+    if (!step.allFinite()) return f;
+    d += step.head<2>(), gain += step(2);
+    if ((d - start).norm() > 2) return f;  // walked off the whole-pixel optimum: no fine minimum
+    f.converged = step.head<2>().norm() < 1e-3;
+  }
+  if (!f.converged || (d.array().abs() > o.max_shift_px).any()) return ShiftFit{};
+  f.shift = d;
+  const ShiftNormals n = shift_normals(s, y, d, gain);
+  std::mt19937_64 rng(o.seed);
+  std::uniform_int_distribution<int> pick(0, std::max(0, s.blocks - 1));
+  Vec2 sum = Vec2::Zero(), sum2 = Vec2::Zero();
+  int m = 0;
+  std::vector<int> draw(s.blocks);
+  for (int r = 0; r < o.bootstrap; ++r) {
+    for (int& b : draw) b = pick(rng);
+    const Eigen::Vector3d step = shift_step(n, draw);
+    if (!step.allFinite()) continue;
+    sum += step.head<2>(), sum2 += step.head<2>().cwiseAbs2(), ++m;
+  }
+  if (m > o.bootstrap / 2) f.sigma = (sum2 / m - (sum / m).cwiseAbs2()).cwiseMax(0.0).cwiseSqrt();
+  return f;
+}
+
 }  // namespace
 
 void GapSearchOptions::validate() const {
@@ -262,20 +378,28 @@ void GapSearchOptions::validate() const {
     fail("warn_sigma_mm = " + std::to_string(warn_sigma_mm) + ": must be positive and at most max_sigma_mm");
   if (!(min_match >= 0 && min_match < 1)) fail("min_match = " + std::to_string(min_match) + ": must be in [0, 1)");
   if (bootstrap < 20) fail("bootstrap = " + std::to_string(bootstrap) + ": must be at least 20");
+  if (!(std::isfinite(max_shift_px) && max_shift_px >= 0 && max_shift_px <= 20))
+    fail("max_shift_px = " + std::to_string(max_shift_px) + ": must be in [0, 20] px");
 }
 
-GapEstimate estimate_gap(const BaselineRays& rays, const PhaseAverage& baseline, const ChartField& worn_green, const GapSearchOptions& o) {
-  o.validate();
-  GapEstimate e;
-  const ChartField worn_log = log_field(worn_green);
-  ChartField worn_texture = worn_log;
+namespace {
+
+/// The worn average's texture on the chart: log green minus its blur of highpass_mm.
+ChartField worn_texture_of(const ChartField& worn_log, const GapSearchOptions& o) {
+  ChartField t = worn_log;
   const ChartField blurred = smooth_field(worn_log, o.highpass_mm);
-  for (std::size_t k = 0; k < worn_texture.value.size(); ++k) worn_texture.value[k] -= blurred.value[k];
-  const Samples s = baseline_samples(rays, baseline, o.highpass_mm * pixels_per_mm(rays, 0.5 * o.max_mm), 0.5 * o.max_mm);
+  for (std::size_t k = 0; k < t.value.size(); ++k) t.value[k] -= blurred.value[k];
+  return t;
+}
+
+/// Stage 1: the correlation every step_mm over [0, max_mm] (into e.curve); the best gap's index
+/// and, between its neighbours, the parabola's vertex.
+std::pair<int, double> coarse_search(const BaselineRays& rays, const Samples& s, const ChartField& worn_texture, const GapSearchOptions& o,
+                                     GapEstimate& e) {
   const std::vector<char> everything(s.ray.size(), 1);
-  // 1. Coarse.
   int best = -1;
   std::vector<double> cost;
+  e.curve.clear();
   for (double g = 0; g <= o.max_mm + 1e-9; g += o.step_mm) {
     cost.push_back(1 - correlation(s, uv_at(rays, s, g), worn_texture, everything));
     e.curve.emplace_back(g, cost.back());
@@ -287,6 +411,43 @@ GapEstimate estimate_gap(const BaselineRays& rays, const PhaseAverage& baseline,
     const double den = cost[best - 1] - 2 * cost[best] + cost[best + 1];
     if (den > 0) centre += o.step_mm * 0.5 * (cost[best - 1] - cost[best + 1]) / den;
   }
+  return {best, centre};
+}
+
+/// The motion between the phases at `gap`, with the pressed places there left out; the samples are
+/// moved by it and e.phase_shift_* filled. False when it could not be measured (samples unmoved).
+bool measure_phase_shift(const BaselineRays& rays, Samples& s, const ChartField& worn_texture, const ChartField& worn_log, double gap,
+                         const GapSearchOptions& o, GapEstimate& e) {
+  move_samples(s, Vec2::Zero());
+  const std::vector<char> keep = not_pressed(s, uv_at(rays, s, gap), worn_log);
+  const ShiftFit sf = fit_shift(s, uv_at(rays, s, gap), worn_texture, keep, o);
+  e.phase_shift_measured = sf.converged && sf.sigma.allFinite();
+  e.phase_shift_px = e.phase_shift_measured ? sf.shift : Vec2::Zero();
+  e.phase_shift_sigma_px = e.phase_shift_measured ? sf.sigma : Vec2::Zero();
+  move_samples(s, e.phase_shift_px);
+  return e.phase_shift_measured;
+}
+
+Samples samples_for(const BaselineRays& rays, const PhaseAverage& baseline, const GapSearchOptions& o) {
+  return baseline_samples(rays, baseline, o.highpass_mm * pixels_per_mm(rays, 0.5 * o.max_mm), 0.5 * o.max_mm);
+}
+
+}  // namespace
+
+GapEstimate estimate_gap(const BaselineRays& rays, const PhaseAverage& baseline, const ChartField& worn_green, const GapSearchOptions& o) {
+  o.validate();
+  GapEstimate e;
+  const ChartField worn_log = log_field(worn_green);
+  const ChartField worn_texture = worn_texture_of(worn_log, o);
+  Samples s = samples_for(rays, baseline, o);
+  // 1. Coarse; with the motion between the phases measured at its best gap and taken out, again.
+  auto [best, centre] = coarse_search(rays, s, worn_texture, o, e);
+  if (o.max_shift_px > 0)
+    for (int pass = 0; pass < 2; ++pass)
+      if (measure_phase_shift(rays, s, worn_texture, worn_log, centre, o, e)) std::tie(best, centre) = coarse_search(rays, s, worn_texture, o, e);
+  const int last = static_cast<int>(e.curve.size()) - 1;
+  std::vector<double> cost;
+  for (const auto& c : e.curve) cost.push_back(c.second);
   // 2. Pressed places out, 3. fine.
   const std::vector<char> keep = not_pressed(s, uv_at(rays, s, centre), worn_log);
   for (char k : keep) e.pressed_pixels += !k;
@@ -294,12 +455,13 @@ GapEstimate estimate_gap(const BaselineRays& rays, const PhaseAverage& baseline,
   for (int iter = 0; iter < 4; ++iter) {
     f = fine_fit(rays, s, worn_texture, keep, centre, o);
     if (!std::isfinite(f.gap)) break;
-    const double d = o.step_mm / 4, lo = std::clamp(centre - 2 * d, 0.0, o.max_mm - 4 * d);
+    const double d = o.step_mm / 2, lo = std::clamp(centre - 2 * d, 0.0, o.max_mm - 4 * d);
     if (f.gap >= lo - 0.25 * d && f.gap <= lo + 4.25 * d) break;
     centre = std::clamp(f.gap, 0.0, o.max_mm);
   }
   e.gap_mm = std::isfinite(f.gap) ? std::clamp(f.gap, 0.0, o.max_mm) : centre;
   e.sigma_mm = std::isfinite(f.sigma) ? f.sigma : o.max_mm;
+  if (e.phase_shift_measured) measure_phase_shift(rays, s, worn_texture, worn_log, e.gap_mm, o, e);
   e.match = f.match;
   e.shift_mm_per_mm = std::isfinite(f.shift) ? f.shift : 0;
   e.pixels = f.pixels;

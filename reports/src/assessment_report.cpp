@@ -74,6 +74,13 @@ json baseline_geometry_json(const BaselineGeometryReport& b) {
             {"gap_sigma_mm", num(b.gap_sigma_mm)},
             {"gap_source", b.part == BaselinePart::touching ? "none" : b.estimate ? (b.gap_estimated ? "estimated" : "unsure") : "given"},
             {"pixels_seeing_skin", b.pixels_seeing_skin}};
+  if (b.part != BaselinePart::touching)
+    j["phase_shift_px"] = b.phase_shift_measured ? json{{"value", {num(b.phase_shift_px.x()), num(b.phase_shift_px.y())}},
+                                                        {"sigma", {num(b.phase_shift_sigma_px.x()), num(b.phase_shift_sigma_px.y())}},
+                                                        {"meaning", "how far the skin texture moved in the image between the phases' first "
+                                                                    "frames (camera or skin), measured with the gap; the phase "
+                                                                    "registration follows it"}}
+                                                  : json(nullptr);
   if (b.part != BaselinePart::touching) {
     const VignettingEstimate& v = b.vignetting;
     j["vignetting"] = {{"model", "V = 1 + v r^2 (r^2: squared distance from the image centre over the half-diagonal's)"},

@@ -295,6 +295,7 @@ struct CapturesSection {
 struct BaselineSection {
   BaselinePart part = BaselinePart::held;
   std::string gap_mm = "auto";
+  GapSearchOptions search;  ///< the gap's search and the camera's move between the phases (max_shift_px)
   /// The gap given (mm), or nullopt for auto. Call after validate().
   std::optional<double> gap() const;
   void bind(SceneFields& f);

@@ -93,6 +93,11 @@ struct BaselineGeometryReport {
   double gap_mm = 0, gap_sigma_mm = 0;  ///< sigma 0 when given
   bool gap_estimated = false;           ///< estimated from the captures (auto)
   std::optional<GapEstimate> estimate;  ///< the estimate's details (auto)
+  /// How far the skin texture moved in the image between the phases' first frames (the camera's
+  /// move or the skin's slide: texture alone cannot tell them apart), measured with the gap
+  /// (GapEstimate::phase_shift_px) so that it does not bias it; the phase registration follows it.
+  Vec2 phase_shift_px = Vec2::Zero(), phase_shift_sigma_px = Vec2::Zero();
+  bool phase_shift_measured = false;
   long long pixels_seeing_skin = 0;     ///< in the baseline's own map
   VignettingEstimate vignetting;        ///< the fall-off divided out of the comparison (own geometry only)
 };
