@@ -286,7 +286,7 @@ Run add_simulate(CLI::App& app) {
   sub->add_option("--out", o->out, "Output folder (default: simulation.out, else captures/ beside the scene)");
   sub->add_option("--seed", o->seed, "Random seed (noise, motion, presses); default simulation.seed or 1");
   sub->add_option("--format", o->format, "Video format: huffyuv (lossless .mkv, default: fastest lossless to write and decode), ffv1 (lossless .mkv, smaller, 3x slower), mjpg (.avi, lossy: damages 0.5 % signals), png (frame folders), h264 (.mp4 as a phone films: libx264 at --crf, yuv420p, limited range, BT.709)")
-      ->check(CLI::IsMember({"ffv1", "huffyuv", "mjpg", "png"}));
+      ->check(CLI::IsMember({"ffv1", "huffyuv", "mjpg", "png", "h264"}));
   sub->add_option("--crf", o->crf, "h264 only: libx264's constant rate factor, 0 (lossless) .. 51 (default 23; phones film at about 18-28)")
       ->check(CLI::Range(0, 51));
   sub->add_flag("--frames-only", o->frames_only, "Write folders of PNG frames instead of videos (same as --format png)");

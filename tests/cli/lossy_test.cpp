@@ -21,13 +21,15 @@ TEST_F(LossyCli, H264CaptureFindsTheHotspotsAndNoFalseOne) {
   const std::string part = "mesh: " + (kWristband / "wristband.obj").string() + "\ncontact: {group: contact}\nmap: {mode: adaptive}\n";
   write_text(work() / "sim.yaml",
              part + "camera: " + (kWristband / "camera.cameramodel").string() +
-                 "\nsimulation:\n  seed: 23\n  format: h264\n  crf: 23\n  scale: 0.25\n"
+                 "\nsimulation:\n  seed: 23\n  scale: 0.25\n"
                  "  timeline: {fps: 30, baseline_s: 1.5, press_s: 2}\n  skin: {tone: medium}\n"
                  "  pressure:\n    texel_mm: 0.1\n    sources:\n"
                  "      - {name: a, type: gaussian, center_part_mm: [-6, 3, 30], peak_kpa: 14, sigma_mm: 1.6}\n"
                  "      - {name: b, type: gaussian, center_part_mm: [6, -3, 30], peak_kpa: 10, sigma_mm: 1.2}\n"
                  "  presses: {diameters_mm: [3], levels: 9, repetitions: 3}\n");
-  const RunResult sim = run_clearfit({"simulate", "sim.yaml", "--out", "caps", "--quiet", "--no-cache"}, work(), work(), 300);
+  // The format from the command line (the scene's simulation.format works too).
+  const RunResult sim =
+      run_clearfit({"simulate", "sim.yaml", "--out", "caps", "--format", "h264", "--crf", "23", "--quiet", "--no-cache"}, work(), work(), 300);
   ASSERT_EQ(sim.exit_code, 0) << sim;
   const auto truth = nlohmann::json::parse(read_text(work() / "caps" / "truth.json"));
   EXPECT_EQ(truth["video"]["format"], "h264");
