@@ -143,21 +143,29 @@ Samples baseline_samples(const BaselineRays& rays, const PhaseAverage& base, dou
 }
 
 /// Normalised correlation of the samples' texture with the worn texture at `uv` (NaN where it is undefined).
-double correlation(const Samples& s, const std::vector<Vec2>& uv, const ChartField& worn_texture, const std::vector<char>& use,
-                   long long* count = nullptr) {
+/// Running sums of a normalised (Pearson) correlation.
+struct Pearson {
   double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
   long long n = 0;
+  void add(double x, double y) { sx += x, sy += y, sxx += x * x, syy += y * y, sxy += x * y, ++n; }
+  /// The correlation, or `none` with fewer than 100 pairs or no spread.
+  double value(double none) const {
+    if (n < 100) return none;
+    const double vx = sxx - sx * sx / n, vy = syy - sy * sy / n;
+    return vx > 0 && vy > 0 ? (sxy - sx * sy / n) / std::sqrt(vx * vy) : none;
+  }
+};
+
+double correlation(const Samples& s, const std::vector<Vec2>& uv, const ChartField& worn_texture, const std::vector<char>& use,
+                   long long* count = nullptr) {
+  Pearson r;
   for (std::size_t i = 0; i < s.ray.size(); ++i) {
     if (!use[i] || !uv[i].allFinite() || !std::isfinite(s.texture[i])) continue;
     const double y = worn_texture.sample(uv[i]);
-    if (!std::isfinite(y)) continue;
-    const double x = s.texture[i];
-    sx += x, sy += y, sxx += x * x, syy += y * y, sxy += x * y, ++n;
+    if (std::isfinite(y)) r.add(s.texture[i], y);
   }
-  if (count) *count = n;
-  if (n < 100) return 0;
-  const double vx = sxx - sx * sx / n, vy = syy - sy * sy / n;
-  return vx > 0 && vy > 0 ? (sxy - sx * sy / n) / std::sqrt(vx * vy) : 0;
+  if (count) *count = r.n;
+  return r.value(0);
 }
 
 /// Pixels of pressed places at `uv`: the log ratio worn / baseline, smoothed on
@@ -272,17 +280,13 @@ Fine fine_fit(const BaselineRays& rays, const Samples& s, const ChartField& worn
 
 /// Normalised correlation of the baseline texture read `d` further with the worn values `y`, over every `every`-th sample.
 double shifted_correlation(const Samples& s, const std::vector<float>& y, const Vec2& d, int every) {
-  double sx = 0, sy = 0, sxx = 0, syy = 0, sxy = 0;
-  long long n = 0;
+  Pearson r;
   for (std::size_t i = 0; i < y.size(); i += every) {
     if (!std::isfinite(y[i])) continue;
     const double x = bilinear(s.tex, s.at[i].x + d.x(), s.at[i].y + d.y());
-    if (!std::isfinite(x)) continue;
-    sx += x, sy += y[i], sxx += x * x, syy += double(y[i]) * y[i], sxy += x * y[i], ++n;
+    if (std::isfinite(x)) r.add(x, y[i]);
   }
-  if (n < 100) return -1;
-  const double vx = sxx - sx * sx / n, vy = syy - sy * sy / n;
-  return vx > 0 && vy > 0 ? (sxy - sx * sy / n) / std::sqrt(vx * vy) : -1;
+  return r.value(-1);
 }
 
 /// Per block, the normal equations of Gauss–Newton on (d, gain) for the residual
@@ -419,8 +423,8 @@ std::pair<int, double> coarse_search(const BaselineRays& rays, const Samples& s,
 bool measure_phase_shift(const BaselineRays& rays, Samples& s, const ChartField& worn_texture, const ChartField& worn_log, double gap,
                          const GapSearchOptions& o, GapEstimate& e) {
   move_samples(s, Vec2::Zero());
-  const std::vector<char> keep = not_pressed(s, uv_at(rays, s, gap), worn_log);
-  const ShiftFit sf = fit_shift(s, uv_at(rays, s, gap), worn_texture, keep, o);
+  const std::vector<Vec2> uv = uv_at(rays, s, gap);
+  const ShiftFit sf = fit_shift(s, uv, worn_texture, not_pressed(s, uv, worn_log), o);
   e.phase_shift_measured = sf.converged && sf.sigma.allFinite();
   e.phase_shift_px = e.phase_shift_measured ? sf.shift : Vec2::Zero();
   e.phase_shift_sigma_px = e.phase_shift_measured ? sf.sigma : Vec2::Zero();
