@@ -45,8 +45,7 @@ Run add_board(CLI::App& app) {
       std::string option = e.element();
       option.insert(0, "--");
       std::replace(option.begin(), option.end(), '_', '-');
-      const std::string what = e.what();
-      throw InputError("", option, what.substr(what.find(": ") + 2));
+      throw InputError("", option, e.problem(), e.hint());
     }
     if (!o->svg.empty()) write_file_atomically(o->svg, board_svg(board));
     if (!o->board_file.empty()) write_board(board, o->board_file);

@@ -19,6 +19,7 @@
 #include <cmath>
 #include <map>
 #include <mutex>
+#include <optional>
 #include <set>
 #include <sstream>
 #include <stdexcept>
@@ -568,7 +569,7 @@ std::vector<BoardObservation> detect_boards(const std::vector<std::filesystem::p
   options.validate();
   if (board.num_tags() == 0) throw std::invalid_argument("detect_boards: empty board");
   std::vector<BoardObservation> out(images.size());
-  std::vector<std::string> errors(images.size());
+  std::vector<std::optional<InputError>> errors(images.size());
   tbb::enumerable_thread_specific<std::unique_ptr<Detector>> detectors;
   std::mutex mutex;
   int done = 0;
@@ -578,7 +579,7 @@ std::vector<BoardObservation> detect_boards(const std::vector<std::filesystem::p
     try {
       out[i] = detect_with(*det, read_gray(images[i]), board, options, images[i].string());
     } catch (const InputError& e) {
-      errors[i] = e.what();
+      errors[i] = e;
     }
     if (progress) {
       std::lock_guard lock(mutex);
@@ -586,8 +587,8 @@ std::vector<BoardObservation> detect_boards(const std::vector<std::filesystem::p
     }
   });
   for (std::size_t i = 0; i < images.size(); ++i)
-    if (!errors[i].empty())
-      throw InputError(images[i].string(), "", errors[i].substr(errors[i].find(": ") + 2));
+    if (const auto& e = errors[i])  // the image as given names the file
+      throw InputError(images[i].string(), e->element(), e->problem(), e->hint());
   return out;
 }
 

@@ -320,7 +320,17 @@ TEST(BoardDetect, FolderWithProgress) {
   EXPECT_THROW(list_images({dir / "empty"}), InputError);
   EXPECT_THROW(list_images({dir / "nope.png"}), InputError);
   std::ofstream(dir / "bad.png") << "not a png";
-  EXPECT_THROW(detect_boards({dir / "bad.png"}, board), InputError);
+  try {  // the image named once, then what is wrong with it
+    detect_boards({dir / "v1.png", dir / "bad.png"}, board);
+    ADD_FAILURE() << "bad.png was read";
+  } catch (const InputError& e) {
+    const std::string file = (dir / "bad.png").string();
+    EXPECT_EQ(e.file(), file);
+    EXPECT_FALSE(e.problem().empty());
+    EXPECT_EQ(std::string(e.what()).rfind(file + ": ", 0), 0u) << e.what();
+    EXPECT_EQ(std::string(e.what()).find(file, 1), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find(e.problem()), std::string::npos) << e.what();
+  }
   std::filesystem::remove_all(dir);
 }
 

@@ -20,10 +20,16 @@ class InputError : public std::runtime_error {
   InputError(std::string file, std::string element, std::string problem, std::string hint = {})
       : std::runtime_error(compose(file, element, problem, hint)),
         file_(std::move(file)),
-        element_(std::move(element)) {}
+        element_(std::move(element)),
+        problem_(std::move(problem)),
+        hint_(std::move(hint)) {}
 
   const std::string& file() const noexcept { return file_; }
   const std::string& element() const noexcept { return element_; }
+  /// What is wrong and what was expected, without the file and element.
+  const std::string& problem() const noexcept { return problem_; }
+  /// What the user can do ("" when none was given).
+  const std::string& hint() const noexcept { return hint_; }
 
  private:
   static std::string compose(const std::string& file, const std::string& element,
@@ -35,7 +41,7 @@ class InputError : public std::runtime_error {
     if (!hint.empty()) s += " (" + hint + ")";
     return s;
   }
-  std::string file_, element_;
+  std::string file_, element_, problem_, hint_;
 };
 
 }  // namespace clearfit
