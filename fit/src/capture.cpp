@@ -339,6 +339,15 @@ MotionRegistration* first_registration(const CaptureReadOptions& options, Motion
   return options.register_motion ? reference.registration.get() : nullptr;
 }
 
+/// The pixels a read converts (FrameReader::set_region): the roi where every integer shift up to the
+/// motion limit puts it (the sums, the statistics, on_frame), and the registration's support.
+cv::Rect read_region(const cv::Rect& roi, const MotionRegistration* registration, double max_motion_px, cv::Size image) {
+  const int reach = static_cast<int>(std::ceil(max_motion_px)) + 2;
+  cv::Rect region(roi.x - reach, roi.y - reach, roi.width + 2 * reach, roi.height + 2 * reach);
+  if (registration) region |= registration->support(max_motion_px);
+  return region & cv::Rect(0, 0, image.width, image.height);
+}
+
 }  // namespace
 
 CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadOptions& options,
@@ -359,8 +368,10 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
   MotionRegistration* const first_reference = first_registration(options, reference, cv::Size(info.width, info.height), roi);
   References refs(first_reference, options, cv::Size(info.width, info.height), roi);
   const Vec2 roi_centre(roi.x + 0.5 * roi.width, roi.y + 0.5 * roi.height);
-  FrameQueue queue(reader);
-  cv::Mat frame, last;
+  reader.set_region(read_region(roi, first_reference, options.max_motion_px, cv::Size(info.width, info.height)));
+  std::optional<FrameQueue> frames(std::in_place, reader);
+  FrameQueue& queue = *frames;
+  cv::Mat frame;
   std::string name;
   int n = 0;
   GreenSums green(roi, cv::Size(info.width, info.height));
@@ -445,10 +456,11 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
     sums.work_ms += ms_since(t_work);
     ++n;
     if (options.progress) options.progress(n, info.frames);
-    std::swap(last, frame);
-    queue.recycle(std::move(frame));  // the frame before: its buffer decodes a later one
+    queue.recycle(std::move(frame));  // its buffer decodes a later one
   }
-  sums.last_frame = last;
+  frames.reset();  // the decoding thread ends: the reader's last frame is `last`, converted whole for pictures
+  sums.last_frame = reader.whole_last_frame();
+  deep_frame(sums.last_frame);
   if (n == 0) throw InputError(source.string(), "", "holds no frames", "check the " + role + " capture");
   release_chunks(sums, options, n, static_cast<int>(sums.chunk_sum.size()));  // the last chunk too
   // A capture shorter than the reference's frames: the reference is what it holds.

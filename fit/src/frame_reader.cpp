@@ -12,6 +12,7 @@ extern "C" {
 #include <libavcodec/avcodec.h>
 #include <libavformat/avformat.h>
 #include <libavutil/display.h>
+#include <libavutil/imgutils.h>
 #include <libavutil/pixdesc.h>
 #include <libswscale/swscale.h>
 }
@@ -61,19 +62,29 @@ int stream_rotation(const AVStream* st) {
 
 /// A video decoded by FFmpeg on several threads, converted with the stream's colour matrix and range.
 struct VideoDecoder {
+  /// A conversion to BGR of one size and source format, with the stream's matrix and range.
+  struct Converter {
+    SwsContext* sws = nullptr;
+    int w = 0, h = 0;
+    AVPixelFormat fmt = AV_PIX_FMT_NONE;
+    Converter() = default;
+    Converter(const Converter&) = delete;
+    Converter& operator=(const Converter&) = delete;
+    ~Converter() { sws_freeContext(sws); }
+  };
   AVFormatContext* format = nullptr;
   AVCodecContext* codec = nullptr;
-  SwsContext* sws = nullptr;
   AVPacket* packet = nullptr;
   AVFrame* frame = nullptr;
+  AVFrame* last = nullptr;  ///< the frame last converted, kept for whole_last()
+  Converter part, whole;    ///< the region's conversion and the whole frame's
   int stream = -1;
   bool draining = false, finished = false;
-  int sws_w = 0, sws_h = 0;
-  AVPixelFormat sws_fmt = AV_PIX_FMT_NONE;
   bool sixteen = false;
+  cv::Rect region;          ///< coded pixels to convert (empty: all)
 
   ~VideoDecoder() {
-    sws_freeContext(sws);
+    av_frame_free(&last);
     av_frame_free(&frame);
     av_packet_free(&packet);
     avcodec_free_context(&codec);
@@ -100,6 +111,7 @@ struct VideoDecoder {
     if (int e = avcodec_open2(codec, dec, nullptr); e < 0) fail(av_message(e));
     packet = av_packet_alloc();
     frame = av_frame_alloc();
+    last = av_frame_alloc();
     info.is_video = true;
     const AVRational fr = av_guess_frame_rate(format, st, nullptr);
     info.fps = fr.num > 0 && fr.den > 0 ? av_q2d(fr) : 0;
@@ -166,39 +178,93 @@ struct VideoDecoder {
     }
   }
 
+  /// The coded pixels converted for `region`: grown by a margin for the chroma filters' taps and
+  /// aligned to the chroma subsampling, so that inside `region` the values are the whole frame's,
+  /// bit for bit (frame_reader_test). The whole frame for rotated streams and formats whose planes
+  /// cannot be offset (palettes, bit streams).
+  cv::Rect converted_rect(const AVFrame& f) const {
+    const cv::Rect all(0, 0, f.width, f.height);
+    const AVPixFmtDescriptor* pd = av_pix_fmt_desc_get(static_cast<AVPixelFormat>(f.format));
+    if (region.area() == 0 || pd == nullptr || (pd->flags & (AV_PIX_FMT_FLAG_PAL | AV_PIX_FMT_FLAG_BITSTREAM | AV_PIX_FMT_FLAG_HWACCEL)) != 0)
+      return all;
+    constexpr int kChromaMargin = 8;  // taps of swscale's chroma interpolation, with room to spare
+    const int ax = 1 << pd->log2_chroma_w, ay = 1 << pd->log2_chroma_h;
+    cv::Rect r(region.x - kChromaMargin, region.y - kChromaMargin, region.width + 2 * kChromaMargin, region.height + 2 * kChromaMargin);
+    r &= all;
+    const int x0 = r.x / ax * ax, y0 = r.y / ay * ay;
+    const int x1 = std::min(f.width, (r.br().x + ax - 1) / ax * ax), y1 = std::min(f.height, (r.br().y + ay - 1) / ay * ay);
+    return {x0, y0, x1 - x0, y1 - y0};
+  }
+
+  /// Converts `rect` of `f` (coded pixels, aligned by converted_rect) into `dst` (rect's size, BGR).
+  void convert(const std::string& src, CaptureInfo& info, const AVFrame& f, const cv::Rect& rect, Converter& c, cv::Mat dst) {
+    auto fmt = static_cast<AVPixelFormat>(f.format);
+    if (c.sws == nullptr || rect.width != c.w || rect.height != c.h || fmt != c.fmt) {
+      sws_freeContext(c.sws);
+      bool full = f.color_range == AVCOL_RANGE_JPEG;
+      const AVPixelFormat src_fmt = unjpeg(fmt, full);
+      const int cs = describe_colour(f.colorspace, full ? AVCOL_RANGE_JPEG : f.color_range, fmt, f.height, info);
+      c.sws = sws_getContext(rect.width, rect.height, src_fmt, rect.width, rect.height, sixteen ? AV_PIX_FMT_BGR48 : AV_PIX_FMT_BGR24,
+                             SWS_BILINEAR | SWS_ACCURATE_RND | SWS_FULL_CHR_H_INT | SWS_FULL_CHR_H_INP, nullptr, nullptr, nullptr);
+      if (c.sws == nullptr) throw InputError(src, "", "has a pixel format clearfit cannot convert (" + info.pixel_format + ")");
+      // Source matrix and range as declared; destination full-range RGB.
+      sws_setColorspaceDetails(c.sws, sws_getCoefficients(cs), info.limited_range ? 0 : 1, sws_getCoefficients(SWS_CS_DEFAULT), 1, 0,
+                               1 << 16, 1 << 16);
+      c.w = rect.width, c.h = rect.height, c.fmt = fmt;
+    }
+    // The planes offset to the rect's corner (as FFmpeg's crop filter does).
+    const AVPixFmtDescriptor* pd = av_pix_fmt_desc_get(fmt);
+    int max_step[4] = {};
+    av_image_fill_max_pixsteps(max_step, nullptr, pd);
+    const std::uint8_t* planes[4] = {};
+    for (int i = 0; i < 4; ++i) {
+      if (f.data[i] == nullptr) continue;
+      const bool chroma = i == 1 || i == 2;
+      const int hs = chroma ? pd->log2_chroma_w : 0, vs = chroma ? pd->log2_chroma_h : 0;
+      planes[i] = f.data[i] + static_cast<std::ptrdiff_t>(rect.y >> vs) * f.linesize[i] + ((rect.x * max_step[i]) >> hs);
+    }
+    std::uint8_t* dst_planes[4] = {dst.data, nullptr, nullptr, nullptr};
+    int dst_stride[4] = {static_cast<int>(dst.step[0]), 0, 0, 0};
+    sws_scale(c.sws, planes, f.linesize, 0, rect.height, dst_planes, dst_stride);
+  }
+
   bool read(const std::string& src, CaptureInfo& info, cv::Mat& out) {
     if (finished) return false;
     if (!decode(src)) return finished = true, false;
     const int w = frame->width, h = frame->height;
-    auto fmt = static_cast<AVPixelFormat>(frame->format);
-    if (sws == nullptr || w != sws_w || h != sws_h || fmt != sws_fmt) {
-      sws_freeContext(sws);
-      bool full = frame->color_range == AVCOL_RANGE_JPEG;
-      const AVPixelFormat src_fmt = unjpeg(fmt, full);
-      const int cs = describe_colour(frame->colorspace, full ? AVCOL_RANGE_JPEG : frame->color_range, fmt, h, info);
-      sws = sws_getContext(w, h, src_fmt, w, h, sixteen ? AV_PIX_FMT_BGR48 : AV_PIX_FMT_BGR24,
-                           SWS_BILINEAR | SWS_ACCURATE_RND | SWS_FULL_CHR_H_INT | SWS_FULL_CHR_H_INP, nullptr, nullptr, nullptr);
-      if (sws == nullptr) throw InputError(src, "", "has a pixel format clearfit cannot convert (" + info.pixel_format + ")");
-      // Source matrix and range as declared; destination full-range RGB.
-      sws_setColorspaceDetails(sws, sws_getCoefficients(cs), info.limited_range ? 0 : 1, sws_getCoefficients(SWS_CS_DEFAULT), 1, 0,
-                               1 << 16, 1 << 16);
-      sws_w = w, sws_h = h, sws_fmt = fmt;
-    }
     // Upright frames are converted straight into `out` (its buffer reused when it has the size and type).
+    const int type = sixteen ? CV_16UC3 : CV_8UC3;
     cv::Mat coded;
-    if (info.rotation_deg == 0) out.create(h, w, sixteen ? CV_16UC3 : CV_8UC3), coded = out;
-    else coded.create(h, w, sixteen ? CV_16UC3 : CV_8UC3);
-    std::uint8_t* dst[4] = {coded.data, nullptr, nullptr, nullptr};
-    int dst_stride[4] = {static_cast<int>(coded.step[0]), 0, 0, 0};
-    sws_scale(sws, frame->data, frame->linesize, 0, h, dst, dst_stride);
-    av_frame_unref(frame);
+    if (info.rotation_deg == 0) out.create(h, w, type), coded = out;
+    else coded.create(h, w, type);
+    const cv::Rect rect = info.rotation_deg == 0 ? converted_rect(*frame) : cv::Rect(0, 0, w, h);
+    convert(src, info, *frame, rect, rect.size() == coded.size() ? whole : part, coded(rect));
+    if (rect.size() != coded.size()) {  // black around the region (a recycled buffer held another frame)
+      coded.rowRange(0, rect.y).setTo(0), coded.rowRange(rect.br().y, h).setTo(0);
+      coded(cv::Rect(0, rect.y, rect.x, rect.height)).setTo(0), coded(cv::Rect(rect.br().x, rect.y, w - rect.br().x, rect.height)).setTo(0);
+    }
+    av_frame_unref(last);
+    av_frame_move_ref(last, frame);
+    turn_upright(info, coded, out);
+    return true;
+  }
+
+  /// The frame last read, whole (an empty Mat before the first).
+  cv::Mat whole_last(const std::string& src, CaptureInfo& info) {
+    if (last->data[0] == nullptr) return {};
+    cv::Mat coded(last->height, last->width, sixteen ? CV_16UC3 : CV_8UC3), out;
+    convert(src, info, *last, cv::Rect(0, 0, last->width, last->height), whole, coded);
+    turn_upright(info, coded, out);
+    return out;
+  }
+
+  static void turn_upright(const CaptureInfo& info, const cv::Mat& coded, cv::Mat& out) {
     switch (info.rotation_deg) {
       case 90: cv::rotate(coded, out, cv::ROTATE_90_CLOCKWISE); break;
       case 180: cv::rotate(coded, out, cv::ROTATE_180); break;
       case 270: cv::rotate(coded, out, cv::ROTATE_90_COUNTERCLOCKWISE); break;
-      default: break;
+      default: out = coded; break;
     }
-    return true;
   }
 };
 
@@ -209,6 +275,7 @@ struct FrameReader::Impl {
   int next = 0;
   int depth = CV_8U;
   std::string last_name;
+  cv::Mat last_image;  ///< image folders: the frame last read
 };
 
 FrameReader::FrameReader(const std::filesystem::path& source) : impl_(std::make_unique<Impl>()) {
@@ -248,6 +315,19 @@ FrameReader::~FrameReader() = default;
 
 const CaptureInfo& FrameReader::info() const { return impl_->info; }
 
+void FrameReader::set_region(const cv::Rect& region) {
+  if (impl_->video) impl_->video->region = region & cv::Rect(0, 0, impl_->info.width, impl_->info.height);
+}
+
+cv::Mat FrameReader::whole_last_frame() {
+  Impl& m = *impl_;
+  cv::Mat frame = m.video ? m.video->whole_last(m.info.source.string(), m.info) : m.last_image;
+  cv::Mat bgr;
+  if (frame.empty() || frame.channels() == 3) return frame;
+  cv::cvtColor(frame, bgr, frame.channels() == 1 ? cv::COLOR_GRAY2BGR : cv::COLOR_BGRA2BGR);
+  return bgr;
+}
+
 std::string FrameReader::frame_name() const { return impl_->last_name; }
 
 bool FrameReader::read(cv::Mat& bgr) {
@@ -263,6 +343,7 @@ bool FrameReader::read(cv::Mat& bgr) {
     frame = cv::imread(file.string(), cv::IMREAD_UNCHANGED);
     m.last_name = file.filename().string();
     if (frame.empty()) throw InputError(file.string(), "", "cannot be read as an image");
+    m.last_image = frame;
     if (frame.depth() != m.depth)
       throw InputError(file.string(), "", std::string("is ") + (frame.depth() == CV_8U ? "8" : frame.depth() == CV_16U ? "16" : "neither 8 nor 16") +
                                               "-bit, the capture's first frame is " + std::to_string(m.info.bit_depth) + "-bit",

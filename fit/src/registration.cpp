@@ -250,6 +250,21 @@ MotionRegistration::Region MotionRegistration::filtered(const cv::Mat& bgr, cons
   return out;
 }
 
+cv::Rect MotionRegistration::support(double motion_px) const {
+  // read(): the template with its apron where the expected motion puts it, the search margin, then
+  // the filters' border. A motion that moves the roi's corners by at most motion_px moves a patch's
+  // corners (at most half a patch diagonal beyond the roi, a patch being no larger than the roi) by
+  // at most twice as much; three times, with a few pixels, to spare.
+  const int ds = options_.downsample;
+  const int reach = ds * (kApron + kSearchMargin + 1 + border_ + 2) + static_cast<int>(std::ceil(3 * motion_px));
+  cv::Rect all;
+  for (const cv::Rect& r : rects_) {
+    const cv::Rect grown(r.x - reach, r.y - reach, r.width + 2 * reach, r.height + 2 * reach);
+    all = all.area() == 0 ? grown : (all | grown);
+  }
+  return all & cv::Rect(0, 0, image_.width, image_.height);
+}
+
 MotionRegistration::Regions MotionRegistration::read(const cv::Mat& bgr, const Similarity& expected) const {
   if (bgr.type() != CV_8UC3 || bgr.size() != image_)
     throw std::invalid_argument("MotionRegistration: frames must be 8-bit BGR of the registration's image size");
@@ -267,9 +282,8 @@ MotionRegistration::Regions MotionRegistration::read(const cv::Mat& bgr, const S
       x0 = std::min(x0, m.x()), y0 = std::min(y0, m.y()), x1 = std::max(x1, m.x()), y1 = std::max(y1, m.y());
     }
     if (!std::isfinite(x0 + y0 + x1 + y1)) return;
-    constexpr int kMargin = 8;
-    const cv::Rect box(static_cast<int>(std::floor(x0)) - kMargin, static_cast<int>(std::floor(y0)) - kMargin,
-                       static_cast<int>(std::ceil(x1 - x0)) + 2 * kMargin + 1, static_cast<int>(std::ceil(y1 - y0)) + 2 * kMargin + 1);
+    const cv::Rect box(static_cast<int>(std::floor(x0)) - kSearchMargin, static_cast<int>(std::floor(y0)) - kSearchMargin,
+                       static_cast<int>(std::ceil(x1 - x0)) + 2 * kSearchMargin + 1, static_cast<int>(std::ceil(y1 - y0)) + 2 * kSearchMargin + 1);
     const Vec2 centre(p.area.x + 0.5 * p.area.width, p.area.y + 0.5 * p.area.height), shift = expected.displacement(ds * centre) / ds;
     const cv::Point moved(static_cast<int>(std::lround(shift.x())), static_cast<int>(std::lround(shift.y())));
     const cv::Rect full_res(ds * (p.area.x + moved.x), ds * (p.area.y + moved.y), ds * p.area.width, ds * p.area.height);

@@ -69,6 +69,8 @@ struct CaptureReadOptions {
   std::function<void(int, int)> progress;
   /// Called with each frame as decoded and the integer shift it was accumulated at (aligned
   /// pixel (x, y) of the roi is the frame's roi.tl() + (x, y) + shift), e.g. for time series.
+  /// Videos are converted only where the read looks (the roi moved by up to max_motion_px, and the
+  /// registration's patches with their filters' support): the frame is black beyond them (and a few px).
   std::function<void(const cv::Mat&, cv::Point)> on_frame;
 };
 
@@ -98,7 +100,7 @@ struct CaptureSums {
   std::vector<std::array<float, 64>> blocks;  ///< per frame: mean linear green of 8×8 blocks of the roi
   std::vector<float> saturated_fraction;      ///< per frame: roi pixels whose green is 255
   std::vector<float> mean_code;               ///< per frame: mean 8-bit green code over the roi
-  cv::Mat last_frame;                  ///< the last frame read (BGR8, full image), for pictures
+  cv::Mat last_frame;                  ///< the last frame read (BGR8, full image, converted whole), for pictures
   double read_ms = 0, work_ms = 0;     ///< time waiting for decoded frames / accumulating
 };
 

@@ -46,6 +46,14 @@ class FrameReader {
   /// A video frame is decoded into `bgr`'s buffer when it has the size and type and nothing else refers to
   /// it (no page faults for a fresh buffer per frame); otherwise `bgr` gets a new one.
   bool read(cv::Mat& bgr);
+  /// Videos (upright ones): frames read after this are converted to BGR only inside `region` (image
+  /// pixels, clipped to the image), with the same values there as a whole frame's; pixels more than
+  /// 10 px from the region are black (those nearer hold what the chroma filters' margin converted). Saves the colour conversion of pixels nobody reads. Empty: whole frames (the
+  /// default). Rotated videos and image folders are always read whole.
+  void set_region(const cv::Rect& region);
+  /// The frame last read, whole whatever the region (BGR as read() gives it; empty before the first
+  /// read). For pictures: one frame converted whole again.
+  cv::Mat whole_last_frame();
   /// Name of the frame last read (file name, or "frame N").
   std::string frame_name() const;
 

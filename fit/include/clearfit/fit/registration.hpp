@@ -113,6 +113,10 @@ class MotionRegistration {
   std::vector<std::pair<int, RegistrationResult>> close_reference();
   /// `bgr`'s motion against the reference, started from `start` (e.g. the previous frame's).
   RegistrationResult measure(const cv::Mat& bgr, const Similarity& start) const;
+  /// The image pixels (full resolution) that measuring a frame reads when the motion it starts from
+  /// moves no corner of the roi by more than `motion_px`: each patch's template, apron and search
+  /// margin where such a motion puts it, with the filters' support around them (clipped to the image).
+  cv::Rect support(double motion_px) const;
   const std::vector<cv::Rect>& patches() const { return rects_; }
   const cv::Rect& roi() const { return roi_; }
   cv::Size image() const { return image_; }
@@ -120,6 +124,7 @@ class MotionRegistration {
 
  private:
   static constexpr int kApron = 2;  ///< template border kept for its gradients, registration px
+  static constexpr int kSearchMargin = 8;  ///< room around the moved template for the correction and the interpolation, registration px
   struct Patch {
     cv::Rect area;                  ///< the template, registration px
     cv::Mat sum;                    ///< sum of the frames averaged, with the apron (CV_32F)
