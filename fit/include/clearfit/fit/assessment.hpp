@@ -128,7 +128,7 @@ struct Assessment {
   ChartField pressure_sigma;
   std::vector<std::uint8_t> pressure_status; ///< PressureStatus per texel (invalid where unseen)
   double below_detection_fraction = 0, saturated_fraction = 0;  ///< of seen texels
-  double peak_kpa = 0, mean_kpa = 0;         ///< over seen texels with an estimate
+  double peak_kpa = 0, mean_kpa = 0;         ///< over every seen texel: below detection as 0, saturated at its lower bound
   std::vector<Hotspot> hotspots;
   std::vector<double> thresholds;            ///< the thresholds used, in the field's unit
   std::vector<int> hotspot_labels;           ///< place id per texel (0 = none), for outlines

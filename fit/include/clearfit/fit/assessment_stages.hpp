@@ -86,9 +86,9 @@ ChartField signal_sigma(const BlanchingSignal& signal, const ChartField& positio
 
 /// The signal turned into pressure through the calibration (PressureCalibration::invert of the sharpened
 /// signal, a.signal_sigma its σ): fills a.calibrated, a.pressure, a.pressure_sigma, a.pressure_status and
-/// the summary figures (below-detection and saturated fractions of the seen texels, peak and mean over the
-/// estimates). With `spatial_noise` (a lossy capture, or phases with their own geometry) a texel below
-/// o.signal_threshold_sigmas of its own σ_y is below detection. Below detection counts as 0 kPa (σ NaN).
+/// the summary figures: below-detection and saturated fractions of the seen texels; peak and mean kPa over every
+/// seen texel, below detection as 0 kPa (σ NaN), saturated at its lower bound. With `spatial_noise` (a lossy capture,
+/// or phases with their own geometry) a texel below o.signal_threshold_sigmas of its own σ_y is below detection too.
 /// Reads a.signal, a.blur_effect (may be empty) and a.signal_sigma; returns 1 per saturated texel.
 std::vector<std::uint8_t> calibrated_pressure(const PressureCalibration& calibration, bool spatial_noise, const AssessmentOptions& o,
                                               Assessment& a);
