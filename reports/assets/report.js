@@ -93,10 +93,15 @@
     if (vertices.calibrated) { v.kpa = q[6 * index + 3]; v.kpa_sigma = q[6 * index + 4]; }
     return v;
   }
+  // A pressure without a sigma is a bound: 0 kPa below detection, the calibration's top when saturated.
   function describe(v) {
     if (v.unseen) return 'not seen by the camera';
     let s = 'vertex ' + v.id + ': ';
-    if ('kpa' in v) s += fmt(v.kpa, 2) + ' \u00b1 ' + fmt(v.kpa_sigma, 2) + ' kPa, ';
+    if ('kpa' in v) {
+      if (Number.isNaN(v.kpa_sigma) && v.kpa === 0) s += 'below detection (0 kPa), ';
+      else if (Number.isNaN(v.kpa_sigma) && v.kpa > 0) s += '\u2265 ' + fmt(v.kpa, 2) + ' kPa (saturated), ';
+      else s += fmt(v.kpa, 2) + ' \u00b1 ' + fmt(v.kpa_sigma, 2) + ' kPa, ';
+    }
     return s + 'signal ' + fmt(v.signal, 4);
   }
   let frame = 0;

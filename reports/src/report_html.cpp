@@ -15,6 +15,7 @@
 #include <cstdlib>
 #include <cstring>
 #include <Eigen/Core>
+#include <Eigen/Geometry>
 #include <fstream>
 #include <map>
 #include <nlohmann/json.hpp>
@@ -296,7 +297,8 @@ std::string level_area(const json& level) {
 // The seen vertices of a view for report.js's hover, as base64 of little-endian float32 rows
 // (x, y, z mm, kPa, kPa σ, signal; NaN where the glb has no such attribute or no value) and uint32 mesh
 // vertex ids; reach_mm, three times the median edge of the seen triangles: a surface point farther than
-// that from every seen vertex lies where the camera does not see.
+// that from every seen vertex lies where the camera does not see. The σ is NaN where the glb's
+// _PRESSURE_SIGMA_KPA is 0, its "none": below detection (0 kPa, a bound) and saturated (a lower bound).
 json hover_vertices(const detail::HeatmapGlb& g, bool calibrated) {
   const double scale = is_number(at(g.info, "node_scale")) ? g.info["node_scale"].get<double>() : 0.001;
   const std::vector<float> kpa = g.scalar("_PRESSURE_KPA"), sigma = g.scalar("_PRESSURE_SIGMA_KPA"), signal = g.scalar("_BLANCH");
@@ -307,7 +309,7 @@ json hover_vertices(const detail::HeatmapGlb& g, bool calibrated) {
     if (g.seen[v] < 0.5f) continue;
     ids.push_back(static_cast<std::uint32_t>(v));
     rows.insert(rows.end(), {g.position_mm[3 * v], g.position_mm[3 * v + 1], g.position_mm[3 * v + 2], value(kpa, v, calibrated),
-                             value(sigma, v, calibrated), value(signal, v, true)});
+                             value(sigma, v, calibrated) > 0 ? value(sigma, v, calibrated) : NAN, value(signal, v, true)});
   }
   std::vector<double> edges;
   for (std::size_t t = 0; t + 2 < g.triangles.size(); t += 3)
@@ -324,57 +326,182 @@ json hover_vertices(const detail::HeatmapGlb& g, bool calibrated) {
           {"rows", base64(bytes(rows))}, {"ids", base64(bytes(ids))}};
 }
 
-// Hotspot markers of the 3D view: each centroid snapped to the nearest seen
-// vertex (a centroid of a curved region can lie inside the part), in the
-// scene's metres (the part node's scale), with that vertex's normal.
+// Where a place's marker stands in the 3D view: beside the place, not on it. The place is the seen vertices
+// joined by triangles to the one nearest its centroid whose value (kPa, or the signal without a calibration)
+// reaches its lowest threshold. Directions in the surface's tangent plane at the centroid are tried in turn,
+// up-right first (up: the model's +y, which model-viewer keeps up, seen from the normal's side); the marker goes
+// to the seen vertex nearest to the place's farthest extent along the direction plus `margin_mm`, accepted when
+// it lies within margin_mm/2 of that point and at least margin_mm/2 beyond the extent, below the threshold
+// (outside every place), at least margin_mm from the other places' centroids and 1.3 margin_mm from the
+// markers placed before it (labels side by side). A
+// second round drops the last two conditions; then the marker falls back to the vertex nearest the centroid.
+struct MarkerAnchor {
+  std::size_t vertex = 0, centroid_vertex = 0;
+  bool found = false, beside = false;
+};
+
+class MarkerPlacer {
+ public:
+  MarkerPlacer(const detail::HeatmapGlb& g, bool calibrated) : g_(g), value_(g.scalar(calibrated ? "_PRESSURE_KPA" : "_BLANCH")) {
+    const std::size_t n = g.vertex_count();
+    std::vector<std::size_t> degree(n + 1, 0);
+    for (std::size_t t = 0; t + 2 < g.triangles.size(); t += 3)
+      for (int e = 0; e < 3; ++e) degree[g.triangles[t + e] + 1] += 2;
+    for (std::size_t v = 0; v < n; ++v) degree[v + 1] += degree[v];
+    first_ = degree;
+    neighbours_.resize(degree[n]);
+    for (std::size_t t = 0; t + 2 < g.triangles.size(); t += 3)
+      for (int e = 0; e < 3; ++e) {
+        const std::uint32_t a = g.triangles[t + e], b = g.triangles[t + (e + 1) % 3];
+        neighbours_[degree[a]++] = b, neighbours_[degree[b]++] = a;
+      }
+    Eigen::Vector3d lo = Eigen::Vector3d::Constant(INFINITY), hi = -lo;
+    for (std::size_t v = 0; v < n; ++v) lo = lo.cwiseMin(position(v)), hi = hi.cwiseMax(position(v));
+    // About 22 px of the view (half the 26 px label's diagonal and a gap): the page frames the whole part,
+    // some 0.4 of the view's width for the model's diagonal.
+    margin_mm_ = n > 0 ? std::max(0.2, 0.05 * (hi - lo).norm()) : 0.0;
+  }
+
+  Eigen::Vector3d position(std::size_t v) const {
+    return {g_.position_mm[3 * v], g_.position_mm[3 * v + 1], g_.position_mm[3 * v + 2]};
+  }
+
+  /// `others`: the other places' centroids; the markers placed so far are remembered.
+  MarkerAnchor place(const Eigen::Vector3d& centroid, double threshold, const std::vector<Eigen::Vector3d>& others) {
+    MarkerAnchor a;
+    a.found = nearest_seen(centroid, a.centroid_vertex);
+    a.vertex = a.centroid_vertex;
+    if (!a.found || value_.empty() || !std::isfinite(threshold)) return a;
+    const std::vector<std::size_t> members = flood(a.centroid_vertex, threshold);
+    Eigen::Vector3d n = g_.normal.empty() ? Eigen::Vector3d::UnitZ()
+                                          : Eigen::Vector3d(g_.normal[3 * a.vertex], g_.normal[3 * a.vertex + 1], g_.normal[3 * a.vertex + 2]);
+    if (!(n.norm() > 0)) n = Eigen::Vector3d::UnitZ();
+    n.normalize();
+    Eigen::Vector3d up = Eigen::Vector3d::UnitY() - Eigen::Vector3d::UnitY().dot(n) * n;
+    if (up.norm() < 1e-6) up = Eigen::Vector3d::UnitX() - Eigen::Vector3d::UnitX().dot(n) * n;
+    up.normalize();
+    const Eigen::Vector3d right = up.cross(n);
+    auto far_from = [&](const Eigen::Vector3d& p, const std::vector<Eigen::Vector3d>& points, double d) {
+      return std::all_of(points.begin(), points.end(), [&](const Eigen::Vector3d& q) { return (p - q).norm() >= d; });
+    };
+    for (const bool apart : {true, false})
+      for (double deg : {45.0, 90.0, 0.0, 135.0, -45.0, 180.0, -90.0, -135.0}) {
+        const double r = deg * M_PI / 180;
+        const Eigen::Vector3d u = std::cos(r) * right + std::sin(r) * up;
+        double extent = 0;
+        for (std::size_t m : members) extent = std::max(extent, (position(m) - centroid).dot(u));
+        const Eigen::Vector3d target = centroid + (extent + margin_mm_) * u;
+        std::size_t v = 0;
+        if (!nearest_seen(target, v) || (position(v) - target).norm() > 0.5 * margin_mm_ ||
+            (position(v) - centroid).dot(u) < extent + 0.5 * margin_mm_ || !(value_[v] < threshold))
+          continue;
+        if (apart && !(far_from(position(v), others, margin_mm_) && far_from(position(v), placed_, 1.3 * margin_mm_))) continue;
+        a.vertex = v, a.beside = true;
+        placed_.push_back(position(v));
+        return a;
+      }
+    return a;
+  }
+
+ private:
+  bool nearest_seen(const Eigen::Vector3d& p, std::size_t& out) const {
+    double best = INFINITY;
+    for (std::size_t v = 0; v < g_.vertex_count(); ++v)
+      if (g_.seen[v] >= 0.5f)
+        if (const double d = (position(v) - p).squaredNorm(); d < best) best = d, out = v;
+    return std::isfinite(best);
+  }
+  // The seen vertices at or above the threshold joined to `start` by triangle edges (start always in).
+  std::vector<std::size_t> flood(std::size_t start, double threshold) const {
+    std::vector<std::size_t> members{start}, stack{start};
+    std::vector<char> visited(g_.vertex_count(), 0);
+    visited[start] = 1;
+    while (!stack.empty()) {
+      const std::size_t v = stack.back();
+      stack.pop_back();
+      for (std::size_t k = first_[v]; k < first_[v + 1]; ++k) {
+        const std::size_t w = neighbours_[k];
+        if (visited[w] || g_.seen[w] < 0.5f || !(value_[w] >= threshold)) continue;
+        visited[w] = 1;
+        members.push_back(w);
+        stack.push_back(w);
+      }
+    }
+    return members;
+  }
+
+  const detail::HeatmapGlb& g_;
+  std::vector<float> value_;
+  std::vector<std::size_t> first_;
+  std::vector<std::uint32_t> neighbours_;
+  double margin_mm_ = 0;
+  std::vector<Eigen::Vector3d> placed_;
+};
+
+// The lowest threshold of a place (its outline's), in the heatmap's quantity; NaN when not given.
+double lowest_threshold(const json& h, bool calibrated) {
+  const json& lv = at(h, "levels");
+  const json& t = lv.is_array() && !lv.empty() ? at(lv[0], calibrated ? "threshold_kpa" : "threshold_signal") : json();
+  return is_number(t) ? t.get<double>() : NAN;
+}
+
+// A hotspot's numbers for the panel its marker opens.
+std::string hotspot_info(const json& h, const std::string& id, bool calibrated) {
+  std::string s = "<div class=\"hotspot-info\" data-hotspot-info=\"" + id + "\" hidden><b>Hotspot " + id + "</b><br>";
+  if (calibrated)
+    s += "peak " + num(at(h, "peak_kpa"), 2) + " &plusmn; " + num(at(h, "peak_sigma_kpa"), 2) + " kPa<br>mean " +
+         num(at(h, "mean_kpa"), 2) + " &plusmn; " + num(at(h, "mean_sigma_kpa"), 2) + " kPa<br>";
+  else
+    s += "peak signal " + num(at(h, "peak_signal"), 4) + "<br>mean signal " + num(at(h, "mean_signal"), 4) + "<br>";
+  const json& lv = at(h, "levels");
+  if (lv.is_array())
+    for (const json& level : lv) {
+      const json& t = at(level, calibrated ? "threshold_kpa" : "threshold_signal");
+      s += "area &ge; " + num(t, calibrated ? 1 : 4) + (calibrated ? " kPa" : "") + ": " + level_area(level) + " mm&sup2;<br>";
+    }
+  if (is_number(at(h, "centre_of_pressure_sigma_mm")))
+    s += "centre of pressure &plusmn; " + num(at(h, "centre_of_pressure_sigma_mm"), 2) + " mm<br>";
+  if (is_number(at(h, "unseen_area_mm2")) && h["unseen_area_mm2"].get<double>() > 0)
+    s += "unseen beside it: " + num(at(h, "unseen_area_mm2"), 1) + " mm&sup2;<br>";
+  return s + "</div>";
+}
+
+// Hotspot markers of the 3D view, numbered as report.json's ids (the chart image's labels and the table's
+// rows), each beside its place (MarkerPlacer) on a seen vertex with that vertex's normal, in the scene's
+// metres (the part node's scale); data-centroid is the place's centroid (a point on the contact surface).
 std::string hotspot_markers(const detail::HeatmapGlb* g, const json& hotspots, bool calibrated) {
   std::string s;
   if (!hotspots.is_array()) return s;
   const double scale = is_number(at(g ? g->info : json(), "node_scale")) ? g->info["node_scale"].get<double>() : 0.001;
+  std::optional<MarkerPlacer> placer;
+  if (g && g->vertex_count() > 0) placer.emplace(*g, calibrated);
+  auto xyz = [](const Eigen::Vector3d& v, double k) { return fixed(k * v[0], 7) + " " + fixed(k * v[1], 7) + " " + fixed(k * v[2], 7); };
+  std::vector<Eigen::Vector3d> centroids;
+  std::vector<const json*> placed;
   for (const json& h : hotspots) {
     const json& c = at(h, "centroid_mm");
     if (!(c.is_array() && c.size() == 3 && is_number(c[0]) && is_number(c[1]) && is_number(c[2]))) continue;
-    Eigen::Vector3d p(c[0].get<double>(), c[1].get<double>(), c[2].get<double>()), n(0, 0, 1);
+    centroids.emplace_back(c[0].get<double>(), c[1].get<double>(), c[2].get<double>());
+    placed.push_back(&h);
+  }
+  for (std::size_t k = 0; k < placed.size(); ++k) {
+    const json& h = *placed[k];
+    Eigen::Vector3d p = centroids[k], centre = p, n(0, 0, 1);
     bool have_normal = false;
-    if (g && g->vertex_count() > 0) {
-      double best = INFINITY;
-      std::size_t bi = 0;
-      for (std::size_t v = 0; v < g->vertex_count(); ++v) {
-        if (g->seen[v] < 0.5f) continue;
-        const double d = (Eigen::Vector3d(g->position_mm[3 * v], g->position_mm[3 * v + 1], g->position_mm[3 * v + 2]) - p).squaredNorm();
-        if (d < best) best = d, bi = v;
-      }
-      if (std::isfinite(best)) {
-        p = Eigen::Vector3d(g->position_mm[3 * bi], g->position_mm[3 * bi + 1], g->position_mm[3 * bi + 2]);
-        if (!g->normal.empty()) n = Eigen::Vector3d(g->normal[3 * bi], g->normal[3 * bi + 1], g->normal[3 * bi + 2]), have_normal = true;
+    if (placer) {
+      std::vector<Eigen::Vector3d> others = centroids;
+      others.erase(others.begin() + static_cast<std::ptrdiff_t>(k));
+      const MarkerAnchor a = placer->place(p, lowest_threshold(h, calibrated), others);
+      if (a.found) {
+        p = placer->position(a.vertex);
+        if (!g->normal.empty()) n = Eigen::Vector3d(g->normal[3 * a.vertex], g->normal[3 * a.vertex + 1], g->normal[3 * a.vertex + 2]), have_normal = true;
       }
     }
     const std::string id = text(at(h, "id"));
-    auto xyz = [](const Eigen::Vector3d& v, double k) {
-      return fixed(k * v[0], 7) + " " + fixed(k * v[1], 7) + " " + fixed(k * v[2], 7);
-    };
-    s += "<button class=\"hotspot\" slot=\"hotspot-" + id + "\" data-hotspot=\"" + id + "\" data-position=\"" + xyz(p, scale) + "\"";
+    s += "<button class=\"hotspot\" slot=\"hotspot-" + id + "\" data-hotspot=\"" + id + "\" data-position=\"" + xyz(p, scale) +
+         "\" data-centroid=\"" + xyz(centre, scale) + "\"";
     if (have_normal) s += " data-normal=\"" + xyz(n, 1) + "\" data-visibility-attribute=\"visible\"";
-    s += " aria-label=\"hotspot " + id + "\">" + id + "</button>";
-    s += "<div class=\"hotspot-info\" data-hotspot-info=\"" + id + "\" hidden><b>Hotspot " + id + "</b><br>";
-    if (calibrated)
-      s += "peak " + num(at(h, "peak_kpa"), 2) + " &plusmn; " + num(at(h, "peak_sigma_kpa"), 2) + " kPa<br>mean " +
-           num(at(h, "mean_kpa"), 2) + " &plusmn; " + num(at(h, "mean_sigma_kpa"), 2) + " kPa<br>";
-    else
-      s += "peak signal " + num(at(h, "peak_signal"), 4) + "<br>mean signal " + num(at(h, "mean_signal"), 4) + "<br>";
-    const json& lv = at(h, "levels");
-    if (lv.is_array())
-      for (const json& level : lv) {
-        const json& t = at(level, calibrated ? "threshold_kpa" : "threshold_signal");
-        s += "area &ge; " + num(t, calibrated ? 1 : 4) + (calibrated ? " kPa" : "") + ": " + level_area(level) + " mm&sup2;<br>";
-      }
-    if (is_number(at(h, "centre_of_pressure_sigma_mm")))
-      s += "centre of pressure &plusmn; " + num(at(h, "centre_of_pressure_sigma_mm"), 2) + " mm<br>";
-    if (is_number(at(h, "centre_of_pressure_sigma_mm")))
-      s += "centre of pressure &plusmn; " + num(at(h, "centre_of_pressure_sigma_mm"), 2) + " mm<br>";
-    if (is_number(at(h, "unseen_area_mm2")) && h["unseen_area_mm2"].get<double>() > 0)
-      s += "unseen beside it: " + num(at(h, "unseen_area_mm2"), 1) + " mm&sup2;<br>";
-    s += "</div>";
+    s += " aria-label=\"hotspot " + id + "\">" + id + "</button>" + hotspot_info(h, id, calibrated);
   }
   return s;
 }

@@ -34,6 +34,7 @@ struct FixtureOptions {
   std::string odd_text = "plain";      ///< put into warnings, file names and options
   double shift_x_mm = 0;               ///< moves the whole plate (compare: positions disagree)
   bool write_glb = true, write_pngs = true;
+  double detection_kpa = 0;            ///< below it a vertex reads 0 kPa with no σ (below detection), as assess writes it
 };
 
 /// The pressure of the fixture's bumps at (x, y), kPa.
@@ -64,6 +65,7 @@ inline json make_assessment_folder(const fs::path& dir, const FixtureOptions& o 
     seen[v] = 1;
     pressure[v] = static_cast<float>(fixture_pressure(o, p.x() - o.shift_x_mm, p.y()));
     signal[v] = static_cast<float>(fixture_signal(pressure[v]));
+    if (pressure[v] < o.detection_kpa) pressure[v] = 0.f;
   }
   ChartField texture;
   texture.grid = ChartGrid::covering(chart.uv_min, chart.uv_max, 0.5);
@@ -73,7 +75,8 @@ inline json make_assessment_folder(const fs::path& dir, const FixtureOptions& o 
       const Vec2 uv = texture.grid.uv(i, j);
       const Vec3 p = chart.origin + uv.x() * chart.axis_u + uv.y() * chart.axis_v;
       if (p.x() - o.shift_x_mm <= 17) {
-        const double kpa = fixture_pressure(o, p.x() - o.shift_x_mm, p.y());
+        double kpa = fixture_pressure(o, p.x() - o.shift_x_mm, p.y());
+        if (kpa < o.detection_kpa) kpa = 0;
         texture.value[texture.grid.index(i, j)] = static_cast<float>(o.calibrated ? kpa : fixture_signal(kpa));
       }
     }
@@ -121,6 +124,9 @@ inline json make_assessment_folder(const fs::path& dir, const FixtureOptions& o 
     std::vector<float> pressure_sigma(nv, NAN);  // a σ that varies over the part (as a real one does)
     if (o.calibrated)
       for (std::size_t v = 0; v < nv; ++v) pressure_sigma[v] = 0.05f * pressure[v] + 0.3f;
+    if (o.calibrated)
+      for (std::size_t v = 0; v < nv; ++v)
+        if (pressure[v] == 0.f && o.detection_kpa > 0) pressure_sigma[v] = NAN;
     in.scalars = {{"_PRESSURE_KPA", o.calibrated ? pressure : std::vector<float>(nv, NAN)},
                   {"_PRESSURE_SIGMA_KPA", pressure_sigma}, {"_BLANCH", signal}};
     in.texture = &texture;

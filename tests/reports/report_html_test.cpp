@@ -8,6 +8,7 @@
 
 #include <cstring>
 #include <regex>
+#include <sstream>
 
 #include "../support/glb_read.hpp"
 #include "report_fixture.hpp"
@@ -123,11 +124,14 @@ TEST_F(ReportHtml, HotspotTableMatchesReportJson) {
 
 // The hover's vertex table (report.js shows a vertex's kPa ± σ and signal from it): exactly the heatmap's
 // seen vertices, each with its position and its _PRESSURE_KPA, _PRESSURE_SIGMA_KPA and _BLANCH as the .glb
-// holds them (read back here with the .glb reader); without a calibration the kPa columns are NaN.
+// holds them (read back here with the .glb reader); without a calibration the kPa columns are NaN. Below
+// detection (the fixture's pressure under 2 kPa: 0 kPa and no σ, which the .glb stores as 0) the σ is NaN.
 TEST_F(ReportHtml, HoverTableHoldsEverySeenVertexWithItsValues) {
-  for (const bool calibrated : {true, false}) {
+  for (const double detection_kpa : {0.0, 2.0, -1.0}) {
     FixtureOptions o;
-    o.calibrated = calibrated;
+    o.calibrated = detection_kpa >= 0;
+    o.detection_kpa = std::max(0.0, detection_kpa);
+    const bool calibrated = o.calibrated;
     const std::string html = generate(o);
     const std::string open = "id=\"clearfit-data\">";
     const std::size_t a = html.find(open) + open.size(), b = html.find("</script>", a);
@@ -152,16 +156,58 @@ TEST_F(ReportHtml, HoverTableHoldsEverySeenVertexWithItsValues) {
     EXPECT_EQ(vertices.at("calibrated").get<bool>(), calibrated);
     EXPECT_GT(vertices.at("reach_mm").get<double>(), 0);
     auto same = [](float x, float y) { return x == y || (std::isnan(x) && std::isnan(y)); };
+    std::size_t below = 0, no_sigma = 0;
     for (std::size_t i = 0; i < n; ++i) {
       const std::uint32_t v = ids[i];
       ASSERT_LT(v, seen_flag.size());
       ASSERT_GT(seen_flag[v], 0.5f) << "vertex " << v;
       for (int c = 0; c < 3; ++c) ASSERT_EQ(rows[6 * i + c], position_mm[3 * v + c]) << "vertex " << v;
       ASSERT_TRUE(same(rows[6 * i + 3], calibrated ? kpa[v] : NAN)) << "vertex " << v;
-      ASSERT_TRUE(same(rows[6 * i + 4], calibrated ? sigma[v] : NAN)) << "vertex " << v;
+      ASSERT_TRUE(same(rows[6 * i + 4], calibrated && sigma[v] > 0 ? sigma[v] : NAN)) << "vertex " << v;
       ASSERT_TRUE(same(rows[6 * i + 5], signal[v])) << "vertex " << v;
-      if (calibrated && std::isfinite(kpa[v])) EXPECT_GT(rows[6 * i + 4], 0.f) << "vertex " << v;
+      if (calibrated && kpa[v] > 0) EXPECT_GT(rows[6 * i + 4], 0.f) << "vertex " << v;
+      // Below detection is the analytic field under the detection limit: 0 kPa and no σ.
+      const double truth = report_test::fixture_pressure(o, position_mm[3 * v], position_mm[3 * v + 1]);
+      if (calibrated && o.detection_kpa > 0 && truth < o.detection_kpa) {
+        ++below;
+        EXPECT_EQ(rows[6 * i + 3], 0.f) << "vertex " << v;
+      }
+      no_sigma += calibrated && std::isnan(rows[6 * i + 4]);
     }
+    EXPECT_EQ(no_sigma, below) << "detection " << o.detection_kpa;
+    if (o.detection_kpa > 0) EXPECT_GT(below, n / 4);
+  }
+}
+
+// The 3D view's numbered markers stand beside their places, not on them: on the seen surface, where the
+// fixture's analytic pressure is below the lowest threshold (4.3 kPa) and beyond the radius at which a
+// Gaussian bump falls to it, σ·√(2 ln(peak/4.3)), but near it (within the 5 % of the part's diagonal the
+// label needs and a mesh cell more); data-centroid is the place's centroid.
+TEST_F(ReportHtml, MarkersStandBesideTheirPlaces) {
+  for (const bool calibrated : {true, false}) {
+    FixtureOptions o;
+    o.calibrated = calibrated;
+    const std::string html = generate(o);
+    const std::regex marker_re(R"re(data-hotspot="(\d+)" data-position="([^"]+)" data-centroid="([^"]+)")re");
+    const double cell_mm = std::hypot(40.0 / o.n, 30.0 / o.n), margin_mm = 0.05 * std::sqrt(40.0 * 40 + 30 * 30 + 3 * 3);
+    int markers = 0;
+    for (auto it = std::sregex_iterator(html.begin(), html.end(), marker_re); it != std::sregex_iterator(); ++it, ++markers) {
+      const report_test::Bump& b = o.bumps.at(std::stoi((*it)[1]) - 1);
+      double p[3], c[3];
+      std::istringstream((*it)[2]) >> p[0] >> p[1] >> p[2];
+      std::istringstream((*it)[3]) >> c[0] >> c[1] >> c[2];
+      for (double* v : {p, c})
+        for (int k = 0; k < 3; ++k) v[k] /= 0.001;  // the scene's metres to mm
+      EXPECT_LE(std::hypot(c[0] - b.x_mm, c[1] - b.y_mm), 1e-6) << "place " << (*it)[1];
+      const double r_outline = b.sigma_mm * std::sqrt(2 * std::log(b.peak_kpa / 4.3));
+      const double r = std::hypot(p[0] - b.x_mm, p[1] - b.y_mm);
+      EXPECT_LT(report_test::fixture_pressure(o, p[0], p[1]), 4.3) << "place " << (*it)[1] << " marker at " << p[0] << ", " << p[1];
+      EXPECT_GT(r, r_outline) << "place " << (*it)[1];
+      EXPECT_LT(r, r_outline + margin_mm + cell_mm) << "place " << (*it)[1];
+      EXPECT_NEAR(p[2], 0, 1e-9) << "the marker lies on the contact face";
+      EXPECT_LE(p[0], 17 + 1e-9) << "the marker lies on the seen part of the plate";
+    }
+    EXPECT_EQ(markers, 2);
   }
 }
 

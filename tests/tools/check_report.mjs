@@ -8,7 +8,12 @@
 //    and the views differ from each other;
 //  - the hotspot table equals report.json (exact values in data-value, shown
 //    text rounded), and clicking a hotspot marker shows that hotspot's numbers;
-//  - pointing at the surface shows the nearest seen vertex's kPa ± σ and signal.
+//  - pointing at the surface shows the nearest seen vertex's kPa ± σ and signal ("below detection" or
+//    "≥ … (saturated)" where the vertex has no σ);
+//  - each view shows the colours its colour bar promises: the colour of the top of the range reached by the
+//    seen vertices appears, and every hotspot marker stands beside its place: the marker's box does not hold
+//    the place's centre, where the screenshot shows a colour of the colour bar (with a calibration, at least
+//    0.8 of the place's lowest threshold in the pressure view) for a place of 1 mm² or more, not the marker.
 // Usage: node check_report.mjs REPORT.html [--screenshot-dir DIR] [--timeout-ms 60000]
 // Prints one JSON line of measurements; exits 1 with a message per failed check.
 import { readFileSync, mkdirSync, writeFileSync } from 'node:fs';
@@ -55,9 +60,8 @@ try {
   await page.goto(pathToFileURL(htmlPath).href, { waitUntil: 'load', timeout });
   measured.page_load_ms = Date.now() - t0;
 
-  // Luminance spread and share of pixels unlike the background (top-left
-  // pixel) of a PNG, measured in the page itself through a canvas.
-  const pixelStats = (png) => page.evaluate(async (b64) => {
+  // A PNG's pixels (RGBA rows), decoded in the page through a canvas.
+  const pixels = (png) => page.evaluate(async (b64) => {
     const img = new Image();
     img.src = 'data:image/png;base64,' + b64;
     await img.decode();
@@ -65,7 +69,11 @@ try {
     c.width = img.width; c.height = img.height;
     const g = c.getContext('2d');
     g.drawImage(img, 0, 0);
-    const d = g.getImageData(0, 0, c.width, c.height).data;
+    return { width: c.width, height: c.height, data: Array.from(g.getImageData(0, 0, c.width, c.height).data) };
+  }, png.toString('base64'));
+  // Luminance spread and share of pixels unlike the background (top-left pixel) of a PNG.
+  const pixelStats = async (png) => {
+    const d = (await pixels(png)).data;
     const bg = [d[0], d[1], d[2]];
     let n = 0, sum = 0, sum2 = 0, differ = 0, colourful = 0;
     for (let i = 0; i < d.length; i += 4) {
@@ -76,7 +84,102 @@ try {
     }
     const mean = sum / n;
     return { luminance_std: Math.sqrt(Math.max(0, sum2 / n - mean * mean)), foreground_fraction: differ / n, colourful_fraction: colourful / n };
-  }, png.toString('base64'));
+  };
+
+  // The colour bar of a view as 256 sRGB samples over [lo, hi] (its CSS gradient's stops).
+  const ramp = (key) => page.evaluate((k) => {
+    const bar = document.querySelector(`.colorbar[data-view="${k}"]`);
+    if (!bar) return null;
+    const css = bar.querySelector('.colorbar-ramp').getAttribute('style');
+    const stops = Array.from(css.matchAll(/#([0-9a-f]{6}) ([0-9.]+)%/g)).map((m) => ({
+      rgb: [0, 2, 4].map((i) => parseInt(m[1].substr(i, 2), 16)), at: Number(m[2]) / 100 }));
+    const samples = [];
+    for (let i = 0; i < 256; ++i) {
+      const t = i / 255;
+      let k2 = 1;
+      while (k2 < stops.length - 1 && stops[k2].at < t) ++k2;
+      const a = stops[k2 - 1], b = stops[k2], w = b.at > a.at ? (t - a.at) / (b.at - a.at) : 0;
+      samples.push(a.rgb.map((c, j) => c + w * (b.rgb[j] - c)));
+    }
+    return { lo: Number(bar.dataset.lo), hi: Number(bar.dataset.hi), samples };
+  }, key);
+  // The value of the colour-bar colour nearest to rgb, and how far (RGB distance) the colour is from it.
+  const onRamp = (bar, rgb) => {
+    let best = Infinity, index = 0;
+    bar.samples.forEach((c, i) => {
+      const d = (c[0] - rgb[0]) ** 2 + (c[1] - rgb[1]) ** 2 + (c[2] - rgb[2]) ** 2;
+      if (d < best) { best = d; index = i; }
+    });
+    return { value: bar.lo + (bar.hi - bar.lo) * index / 255, distance: Math.sqrt(best) };
+  };
+  const embeddedVertices = await page.evaluate(() => JSON.parse(document.getElementById('clearfit-data').textContent).vertices || null);
+  const vertexRows = embeddedVertices ? new Float32Array(new Uint8Array(Buffer.from(embeddedVertices.rows, 'base64')).buffer) : null;
+  const calibratedReport = Boolean(report.calibration && report.calibration.pressure);
+
+  async function checkColours(key, png) {
+    const bar = await ramp(key);
+    if (!bar) { fail(`view ${key}: no colour bar`); return; }
+    const img = await pixels(png);
+    const rgbAt = (x, y) => { const i = 4 * (Math.round(y) * img.width + Math.round(x)); return img.data.slice(i, i + 3); };
+    // The top of the range the seen vertices reach (kPa in the pressure view, else the signal), within the bar.
+    const column = key === 'pressure' ? 3 : 5;
+    let top = -Infinity;
+    if (vertexRows) for (let i = column; i < vertexRows.length; i += 6) if (Number.isFinite(vertexRows[i])) top = Math.max(top, vertexRows[i]);
+    top = Math.min(top, bar.hi);
+    const high = bar.lo + 0.8 * (top - bar.lo);
+    let highPixels = 0;
+    for (let i = 0; i < img.data.length; i += 4) {
+      const r = onRamp(bar, [img.data[i], img.data[i + 1], img.data[i + 2]]);
+      if (r.distance < 12 && r.value >= high) ++highPixels;
+    }
+    measured.views[key].top_value = top;
+    measured.views[key].pixels_at_top = highPixels;
+    if (Number.isFinite(top) && top > bar.lo && highPixels < 5)
+      fail(`view ${key}: the colour of ${high.toFixed(3)} and above (0.8 of the top the seen vertices reach, ${top.toFixed(3)}) shows on ${highPixels} pixels`);
+    // Markers beside their places: the place's centre, projected by model-viewer (a probe hotspot there), lies
+    // outside its marker's box and shows a colour of the bar.
+    const centres = await page.evaluate(async () => {
+      const viewer = document.getElementById('viewer');
+      const probes = [];
+      for (const b of document.querySelectorAll('button.hotspot[data-centroid]')) {
+        const probe = document.createElement('div');
+        probe.slot = 'hotspot-probe-' + b.dataset.hotspot;
+        probe.dataset.position = b.dataset.centroid;
+        probe.style.cssText = 'width:0;height:0;pointer-events:none';
+        viewer.appendChild(probe);
+        probes.push([b, probe]);
+      }
+      await new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r)));
+      const box = viewer.getBoundingClientRect();
+      const out = probes.map(([b, probe]) => {
+        const q = viewer.queryHotspot(probe.slot);
+        const m = b.getBoundingClientRect();
+        return { id: b.dataset.hotspot, centre: q ? [q.canvasPosition.x, q.canvasPosition.y] : null,
+                 marker: [m.left - box.left, m.top - box.top, m.right - box.left, m.bottom - box.top] };
+      });
+      for (const [, probe] of probes) probe.remove();
+      return out;
+    });
+    measured.views[key].markers = [];
+    for (const c of centres) {
+      const h = (report.hotspots || []).find((x) => String(x.id) === c.id) || {};
+      if (!c.centre) { fail(`view ${key}: the centre of place ${c.id} could not be projected`); continue; }
+      const [x, y] = c.centre, [l, t, r, b] = c.marker;
+      const covered = x >= l - 2 && x <= r + 2 && y >= t - 2 && y <= b + 2;
+      const colour = onRamp(bar, rgbAt(x, y));
+      measured.views[key].markers.push({ id: c.id, centre: [Math.round(x), Math.round(y)], marker: c.marker.map(Math.round), value: colour.value, distance: colour.distance });
+      if (covered) fail(`view ${key}: the marker of place ${c.id} covers its centre (${x.toFixed(0)}, ${y.toFixed(0)})`);
+      // The colour at the centre, for places of 1 mm² and more (a smaller one is a few pixels across, and may
+      // lie beside unseen skin). Within 40 of the bar: vertex colours blend across a coarse mesh's triangles
+      // off the bar's curve, while the marker (red, white), the no-data grey and the background lie 100 and
+      // more from it.
+      if (covered || !(h.area_mm2 >= 1)) continue;
+      if (!(colour.distance < 40)) fail(`view ${key}: the centre of place ${c.id} shows rgb ${rgbAt(x, y).join(',')}, no colour of the bar`);
+      const threshold = h.levels && h.levels[0] ? h.levels[0].threshold_kpa : undefined;
+      if (key === 'pressure' && calibratedReport && Number.isFinite(threshold) && colour.value < 0.8 * threshold)
+        fail(`view ${key}: the centre of place ${c.id} shows ${colour.value.toFixed(2)} kPa, under 0.8 of its threshold ${threshold}`);
+    }
+  }
 
   const views = await page.evaluate(() => JSON.parse(document.getElementById('clearfit-data').textContent).views.map((v) => v.key));
   const shots = {};
@@ -100,6 +203,7 @@ try {
     if (shotDir) { mkdirSync(shotDir, { recursive: true }); writeFileSync(join(shotDir, `view_${key}.png`), png); }
     const stats = await pixelStats(png);
     measured.views[key] = { load_ms: Date.now() - t1, model_visible: state.visible, ...stats };
+    await checkColours(key, png);
     // Not blank: the part stands out from the background, and the heatmap's
     // colours (saturated, unlike the grey no-data colour and the background) show.
     if (!(stats.luminance_std > 8 && stats.foreground_fraction > 0.02 && stats.colourful_fraction > 0.01))
@@ -198,11 +302,12 @@ try {
       const text = (await tip.isVisible()) ? await tip.textContent() : '';
       const i = target.index, row = rows.subarray(6 * i, 6 * i + 6);
       const shownValue = (v, d) => (Number.isNaN(v) ? '\u2014' : v.toFixed(d));
-      const expected = `vertex ${ids[i]}: ` + (embedded.calibrated ? `${shownValue(row[3], 2)} \u00b1 ${shownValue(row[4], 2)} kPa, ` : '') +
-                       `signal ${shownValue(row[5], 4)}`;
+      const pressureText = Number.isNaN(row[4]) && row[3] === 0 ? 'below detection (0 kPa), '
+                         : Number.isNaN(row[4]) && row[3] > 0 ? `\u2265 ${shownValue(row[3], 2)} kPa (saturated), `
+                         : `${shownValue(row[3], 2)} \u00b1 ${shownValue(row[4], 2)} kPa, `;
+      const expected = `vertex ${ids[i]}: ` + (embedded.calibrated ? pressureText : '') + `signal ${shownValue(row[5], 4)}`;
       measured.hover = { at: [Math.round(target.x), Math.round(target.y)], vertex: ids[i], distance_mm: target.distance, shown: text };
       if (text !== expected) fail(`hovering the surface shows "${text}", expected "${expected}"`);
-      if (embedded.calibrated && !(row[4] > 0)) fail(`the hovered vertex ${ids[i]} has no pressure sigma (${row[4]})`);
     }
   }
 
