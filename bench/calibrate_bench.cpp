@@ -8,9 +8,14 @@
 // the true lens: at the image centre, worst over the observed region, worst
 // over the whole image (32 x 24 cells, camera-frame rotation fitted over the
 // observed region as mrcal's projection_diff does).
-//   calibrate_bench [trials=5] [noise_px=0.3] [lens=moderate|strong] [boards=whole|partial]
+//   calibrate_bench [trials=5] [noise_px=0.3] [lens=moderate|strong] [boards=whole|partial] [first_seed=100]
 // whole: every view shows the whole board (what mrgingham's chessboards give);
 // partial: views may be cut by the image border (at least half the corners in).
+// The solves alone are compared in CPU seconds: clearfit's calibrate_camera (its seeding included) against
+// mrcal's optimize calls inside mrcal-calibrate-cameras, and against those with its seed. Trial 0 is
+// clearfit's first solve in the process (cold: libmrcal's solver then gets its memory fresh from the kernel,
+// which costs page faults); the later trials are warm. `clearfit calibrate` runs one cold solve, so run
+// single trials with different first seeds for the cold figure.
 #include <clearfit/camera/calibrate.hpp>
 
 #include <opencv2/calib3d.hpp>
@@ -20,12 +25,14 @@
 #include <unistd.h>
 
 #include <algorithm>
+#include <array>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <cstdlib>
 #include <ctime>
 #include <filesystem>
+#include <fstream>
 #include <optional>
 #include <string>
 #include <vector>
@@ -115,22 +122,55 @@ double median(std::vector<double> v) {
   return v.empty() ? 0 : v[v.size() / 2];
 }
 
-/// mrcal's own tool on the same corners (a child process, timed as such); its RMS from its optimization inputs.
+// Runs mrcal-calibrate-cameras (argv after the script) with its solve timed from inside: the CPU time
+// (time.process_time, every thread) of its seed (mrcal.seed_stereographic, numpy) and of its mrcal.optimize
+// calls (libmrcal, 4 of them), printed last as "mrcal seed cpu S optimize cpu O". The rest of its time is
+// Python's start-up, imports, reading the corners and writing the model.
+const char* const kTimedTool = R"(import runpy, sys, time
+import mrcal
+spent = {'seed': 0.0, 'optimize': 0.0}
+def timed(name, f):
+    def call(*args, **kwargs):
+        t = time.process_time()
+        try:
+            return f(*args, **kwargs)
+        finally:
+            spent[name] += time.process_time() - t
+    return call
+mrcal.optimize = timed('optimize', mrcal.optimize)
+mrcal.seed_stereographic = timed('seed', mrcal.seed_stereographic)
+sys.argv = ['/usr/bin/mrcal-calibrate-cameras'] + sys.argv[1:]
+try:
+    runpy.run_path(sys.argv[0], run_name='__main__')
+finally:
+    print('mrcal seed cpu %.6f optimize cpu %.6f' % (spent['seed'], spent['optimize']))
+)";
+
+/// CPU seconds of mrcal's tool's seed and optimize calls (kTimedTool); NaN when it did not say.
+struct MrcalSolveCpu {
+  double seed = NAN, optimize = NAN;
+};
+
+/// mrcal's own tool on the same corners (a child process, timed as such, and its solve timed inside it);
+/// its RMS from its optimization inputs.
 Row mrcal_tool_row(const std::vector<BoardObservation>& views, const fs::path& dir, const CameraModel& truth,
-                   const std::vector<int>& observed) {
+                   const std::vector<int>& observed, MrcalSolveCpu& solve) {
   Row row;
   write_corners_levels_vnl(views, dir / "corners.vnl");
   fs::remove_all(dir / "mrcal");
   fs::create_directories(dir / "mrcal");
+  std::ofstream(dir / "timed_tool.py") << kTimedTool;
   const double c0 = cpu_seconds(RUSAGE_CHILDREN);
   const auto t0 = Clock::now();
   const std::string out =
       run("cd " + dir.string() +
-          " && /usr/bin/python3 /usr/bin/mrcal-calibrate-cameras --corners-cache corners.vnl "
+          " && /usr/bin/python3 timed_tool.py --corners-cache corners.vnl "
           "--lensmodel LENSMODEL_OPENCV8 --focal 1000 --imagersize 1280 960 --object-spacing 30 "
           "--object-width-n 10 --object-height-n 10 --outdir mrcal 'frame*.png'");
   row.wall = std::chrono::duration<double>(Clock::now() - t0).count();
   row.cpu = cpu_seconds(RUSAGE_CHILDREN) - c0;
+  if (const std::size_t at = out.rfind("mrcal seed cpu "); at != std::string::npos)
+    std::sscanf(out.c_str() + at, "mrcal seed cpu %lf optimize cpu %lf", &solve.seed, &solve.optimize);
   std::optional<CameraModel> tool;
   try {
     if (out.rfind("FAILED", 0) != 0)
@@ -211,6 +251,7 @@ int main(int argc, char** argv) {
   const std::string lens = argc > 3 ? argv[3] : "moderate";
   const CameraModel truth = true_lens(lens);
   const bool whole = !(argc > 4 && std::string(argv[4]) == "partial");
+  const unsigned first_seed = argc > 5 ? static_cast<unsigned>(std::atoi(argv[5])) : 100u;
   const CalibrationGrid grid{10, 10, 30.0};
   char templ[] = "/tmp/clearfit_calibrate_bench_XXXXXX";
   if (!mkdtemp(templ)) return 1;
@@ -224,13 +265,14 @@ int main(int argc, char** argv) {
   std::printf("  %-24s %8s %8s %8s %8s %7s %9s %9s %11s\n", "method", "wall s", "cpu s", "ratio", "rms px",
               "corners", "centre px", "worst obs", "worst image");
   std::vector<std::vector<Row>> all(4);
+  std::vector<std::array<double, 3>> solves;  // per trial: clearfit, mrcal's optimize calls, with its seed
   const char* names[] = {"clearfit (solve)", "clearfit (+uncertainty)", "mrcal-calibrate-cameras",
                          "OpenCV calibrateCamera"};
   for (int t = 0; t < trials; ++t) {
     SyntheticViewsOptions o;
     o.views = 30;
     o.noise_px = noise;
-    o.seed = 100 + t;
+    o.seed = first_seed + t;
     o.min_inside_fraction = whole ? 1.0 : 0.5;
     const auto views = synthesize_views(truth, grid, o);
     std::printf("trial %d (seed %u)\n", t, o.seed);
@@ -260,7 +302,8 @@ int main(int argc, char** argv) {
     score(rows[0], truth, ours.model, observed);
     score(rows[1], truth, ours.model, observed);
 
-    rows[2] = mrcal_tool_row(views, dir, truth, observed);
+    MrcalSolveCpu mrcal_solve;
+    rows[2] = mrcal_tool_row(views, dir, truth, observed, mrcal_solve);
     rows[3] = opencv_row(views, grid, truth, observed);
     for (int k = 0; k < 4; ++k) {
       if (rows[k].ok)
@@ -268,6 +311,14 @@ int main(int argc, char** argv) {
       else
         std::printf("  %-24s failed (not in the medians)\n", names[k]);
       if (rows[k].ok) all[k].push_back(rows[k]);
+    }
+    // The solves alone, in CPU seconds: clearfit's calibrate_camera (its seed included) against mrcal's
+    // optimize calls inside its tool, and against those with its seed (start-up and files left out).
+    if (rows[2].ok && std::isfinite(mrcal_solve.seed) && std::isfinite(mrcal_solve.optimize)) {
+      solves.push_back({rows[0].cpu, mrcal_solve.optimize, mrcal_solve.seed + mrcal_solve.optimize});
+      std::printf("  solve cpu s: clearfit %.4f; mrcal's optimize calls %.4f (%.2fx), with its seed %.4f (%.2fx)\n",
+                  rows[0].cpu, mrcal_solve.optimize, rows[0].cpu / mrcal_solve.optimize, solves.back()[2],
+                  rows[0].cpu / solves.back()[2]);
     }
   }
   std::printf("median over %d trials\n", trials);
@@ -290,6 +341,18 @@ int main(int argc, char** argv) {
     }
     m = {median(w), median(c), median(r), median(ce), median(wo), median(wi), int(median(n)), true};
     print_row(names[k], m, ours_wall);
+  }
+  if (!solves.empty()) {
+    std::vector<double> ours, opt, with_seed, r_opt, r_seed;
+    for (const auto& t : solves) {
+      ours.push_back(t[0]), opt.push_back(t[1]), with_seed.push_back(t[2]);
+      r_opt.push_back(t[0] / t[1]), r_seed.push_back(t[0] / t[2]);
+    }
+    std::printf("  solve cpu s (medians of %zu trials): clearfit %.4f; mrcal's optimize calls %.4f, ratio %.2fx; "
+                "with its seed %.4f, ratio %.2fx\n",
+                solves.size(), median(ours), median(opt), median(r_opt), median(with_seed), median(r_seed));
+    std::printf("  clearfit's first solve in this process (cold, trial 0): %.4f s, %.2fx mrcal's optimize calls\n",
+                solves[0][0], solves[0][0] / solves[0][1]);
   }
   std::error_code ec;
   fs::remove_all(dir, ec);
