@@ -34,7 +34,7 @@ struct CalibrationSessionSpec {
   // camera and view
   int width = 160, height = 120;
   double focal_px = 600;             ///< pinhole camera written beside the video
-  IndenterOptics optics{60, 3, 1.49};
+  IndenterOptics optics{.distance_mm = 60, .slab_mm = 3};  ///< a 3 mm clear slab (its index: IndenterOptics)
   double indenter_radius_mm = 2.5;  ///< the flat punch's radius; a sphere's cap (the disc the presses are read over)
   double sphere_radius_mm = 0;       ///< > 0: a spherical indenter of this radius (Hertz), else the flat punch
   double e_star_kpa = 150;           ///< the skin's plane-strain modulus E* (the sphere's contact radius)
