@@ -5,6 +5,7 @@
 #include <clearfit/cli/provenance.hpp>
 
 #include <chrono>
+#include <future>
 #include <clearfit/error.hpp>
 #include <clearfit/fit/assessment.hpp>
 #include <clearfit/reports/assessment_report.hpp>
@@ -54,6 +55,17 @@ Run add_assess(CLI::App& app) {
     const auto t0 = std::chrono::steady_clock::now();
     const auto p = prepare(*o);
     const Scene& sc = o->scene;
+    // The inputs' SHA-256 for the report, on a thread of its own while the captures are read (about
+    // 0.8 s of CPU for the sample's 1.3 GB of lossless video, which would otherwise follow the assessment).
+    const CapturesSection& cap = sc.captures;
+    std::future<std::vector<ReportInput>> hashes = std::async(std::launch::async, [named = std::vector<std::pair<std::string, std::string>>{
+        {"scene", o->scene_file}, {"mesh", sc.part.mesh}, {"camera", sc.part.camera}, {"pose", sc.part.pose}, {"baseline", cap.baseline},
+        {"worn", cap.worn}, {"capture", cap.both}, {"calibration", sc.calibration.pressure}}] {
+      std::vector<ReportInput> inputs;
+      for (const auto& [role, path] : named)
+        if (!path.empty()) inputs.push_back({role, path, sha256_of_path(path)});
+      return inputs;
+    });
     StagedFolder staged(sc.outputs.folder);
     p->options.progress = progress_printer(o->quiet);
     const AssessmentScene scene = p->view();
@@ -76,10 +88,7 @@ Run add_assess(CLI::App& app) {
     ctx.pose_source = part->pose_source;
     ctx.camera_source = sc.part.camera;
     ctx.calibration = calibration ? &*calibration : nullptr;
-    const CapturesSection& cap = sc.captures;
-    for (auto [role, path] : {std::pair{"scene", o->scene_file}, {"mesh", sc.part.mesh}, {"camera", sc.part.camera}, {"pose", sc.part.pose},
-                              {"baseline", cap.baseline}, {"worn", cap.worn}, {"capture", cap.both}, {"calibration", sc.calibration.pressure}})
-      if (!path.empty()) ctx.inputs.push_back({role, path, sha256_of_path(path)});
+    ctx.inputs = hashes.get();
     const MapOptions& mo = part->map_options;
     ctx.options = {{"ior", mo.indices.n_part},
                    {"medium_ior", mo.indices.n_medium},
