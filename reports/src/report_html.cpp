@@ -203,6 +203,28 @@ tinygltf::Model single_scene(tinygltf::Model model, int scene) {
 
 using View = detail::PageView;
 
+// A view's model as glb bytes: the scene `scene` alone, with the part beside the contact surface (the
+// primitives whose indices are named "rest" by write_heatmap_glb) lit, in its vertex colours (the grey of
+// no data), so that the part's shape and outline read in the view, apart from the flat, unlit heatmap and its
+// unseen grey.
+std::string view_glb(tinygltf::Model model, int scene) {
+  tinygltf::Material part;
+  part.name = "part (lit)";
+  part.pbrMetallicRoughness.baseColorFactor = {1, 1, 1, 1};
+  part.pbrMetallicRoughness.metallicFactor = 0;
+  part.pbrMetallicRoughness.roughnessFactor = 0.9;
+  part.doubleSided = true;
+  const int material = static_cast<int>(model.materials.size());
+  bool used = false;
+  for (tinygltf::Mesh& mesh : model.meshes)
+    for (tinygltf::Primitive& p : mesh.primitives)
+      if (p.indices >= 0 && p.indices < static_cast<int>(model.accessors.size()) && model.accessors[p.indices].name == "rest") {
+        p.material = material, used = true;
+      }
+  if (used) model.materials.push_back(part);
+  return detail::to_glb_bytes(single_scene(std::move(model), scene));
+}
+
 // The views of the 3D section from heatmap.glb: what the file shows (pressure,
 // or the signal when uncalibrated) and, when the file is a pressure heatmap
 // with a _BLANCH attribute, the same mesh recoloured by the blanching signal.
@@ -238,7 +260,7 @@ std::vector<View> make_views(const detail::HeatmapGlb& full, const json& report,
   const bool pressure = quantity == "pressure_kpa";
   const int default_scene = g.model.defaultScene >= 0 ? g.model.defaultScene : 0;
   views.push_back({pressure ? "pressure" : "signal", pressure ? "Pressure" : "Blanching signal",
-                   detail::to_glb_bytes(single_scene(g.model, default_scene)),
+                   view_glb(g.model, default_scene),
                    colour_bar(pressure ? "pressure" : "signal", colormap, lo, hi, unit,
                               pressure ? "Pressure" : "Blanching signal (relative)")});
   const std::vector<float> blanch = g.scalar("_BLANCH");
@@ -283,7 +305,7 @@ std::vector<View> make_views(const detail::HeatmapGlb& full, const json& report,
   }
   acc.minValues.clear();
   acc.maxValues.clear();
-  views.push_back({"signal", "Blanching signal", detail::to_glb_bytes(single_scene(std::move(model), scenes["vertex_colors"].get<int>())),
+  views.push_back({"signal", "Blanching signal", view_glb(std::move(model), scenes["vertex_colors"].get<int>()),
                    colour_bar("signal", colormap, 0.0, s_hi, "", "Blanching signal (relative)")});
   return views;
 }

@@ -272,6 +272,35 @@ TEST_F(ReportHtml, SignalOnlyWithoutCalibration) {
 
 // The signal view is heatmap.glb recoloured from _BLANCH: read it back from
 // the page and check its colours against the colormap directly.
+// In each 3D view the heatmap (the contact primitive) stays unlit, as the chart images are coloured, while the
+// rest of the part is drawn lit in its vertex colours (the no-data grey: base colour factor 1), so that its
+// shape and outline read apart from the unseen contact surface's flat grey.
+TEST_F(ReportHtml, ViewsDrawTheHeatmapUnlitAndThePartLit) {
+  const std::string html = generate({});
+  for (const char* key : {"pressure", "signal"}) {
+    const std::string glb = test::embedded_glb(html, key);
+    ASSERT_FALSE(glb.empty()) << key;
+    const tinygltf::Model model = test::parse_glb(glb);
+    const tinygltf::Mesh& mesh = model.meshes.at(model.nodes.at(model.scenes[model.defaultScene].nodes[0]).mesh);
+    int contact = 0, rest = 0;
+    for (const tinygltf::Primitive& p : mesh.primitives) {
+      const std::string name = model.accessors.at(p.indices).name;
+      const tinygltf::Material& m = model.materials.at(p.material);
+      const bool unlit = m.extensions.count("KHR_materials_unlit") > 0;
+      if (name == "contact") {
+        ++contact;
+        EXPECT_TRUE(unlit) << key;
+      } else if (name == "rest") {
+        ++rest;
+        EXPECT_FALSE(unlit) << key;
+        for (int c = 0; c < 4; ++c) EXPECT_EQ(m.pbrMetallicRoughness.baseColorFactor[c], 1.0) << key;
+      }
+    }
+    EXPECT_EQ(contact, 1) << key;
+    EXPECT_EQ(rest, 1) << key;
+  }
+}
+
 TEST_F(ReportHtml, SignalViewIsRecolouredFromBlanch) {
   const std::string html = generate({});
   const std::string glb = test::embedded_glb(html, "signal");
