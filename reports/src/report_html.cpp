@@ -693,8 +693,11 @@ std::string captures_table(const json& report) {
     frames += " of " + text(at(c, "frames_total"));
     std::string motion = num(at(c, "motion_px_max"), 2);
     if (at(c, "motion_compensated").is_boolean()) motion += c["motion_compensated"].get<bool>() ? ", compensated" : ", not compensated";
+    // A folder of images has no frame rate (report.json's fps 0): a dash, not "0.0".
+    const json& rate = at(c, "fps");
+    const std::string fps = is_number(rate) && rate.get<double>() > 0 ? num(rate, 1) : std::string(kDash) + " (images)";
     s += row({std::string("<th scope=\"row\">") + (std::string(name) == "worn" ? "worn" : "not worn (baseline)") + "</th>",
-              td(text(at(c, "source"))), td(frames), td(num(at(c, "fps"), 1)), td(motion), td(percent(at(c, "saturated_fraction")))});
+              td(text(at(c, "source"))), td(frames), td(fps), td(motion), td(percent(at(c, "saturated_fraction")))});
   }
   s += "</tbody></table>";
   if (const json& split = at(caps, "split"); !split.is_null()) s += "<p>Phases split from one capture: " + text(split) + "</p>";

@@ -301,6 +301,18 @@ TEST_F(ReportHtml, ViewsDrawTheHeatmapUnlitAndThePartLit) {
   }
 }
 
+// A capture read from a folder of images has no frame rate (fps 0 in report.json): the captures table shows a
+// dash, where it showed "0.0"; a video's rate is shown.
+TEST_F(ReportHtml, ImageFolderCapturesShowNoFrameRate) {
+  json report = make_assessment_folder(dir_, FixtureOptions{});
+  report["captures"]["baseline"]["fps"] = 0.0;
+  std::ofstream(dir_ / "report.json") << report.dump(2);
+  const std::string html = slurp(reports::write_report_html(dir_).html);
+  EXPECT_NE(html.find("<td>plain.mp4</td><td>10&ndash;99 of 120</td><td>\xE2\x80\x94 (images)</td>"), std::string::npos);
+  EXPECT_NE(html.find("<td>worn.mp4</td><td>20&ndash;119 of 120</td><td>60.0</td>"), std::string::npos);
+  EXPECT_FALSE(shows_nan(html));
+}
+
 TEST_F(ReportHtml, SignalViewIsRecolouredFromBlanch) {
   const std::string html = generate({});
   const std::string glb = test::embedded_glb(html, "signal");
