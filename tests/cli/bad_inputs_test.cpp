@@ -14,6 +14,7 @@
 #include <clearfit/geometry/import.hpp>
 #include <clearfit/geometry/shapes.hpp>
 
+#include <nlohmann/json.hpp>
 #include <opencv2/core.hpp>
 #include <opencv2/imgcodecs.hpp>
 
@@ -53,6 +54,19 @@ std::string force_log(int presses, bool clipped = false) {
       csv += std::to_string(0.1 * i) + "," + std::to_string(f) + "\n";
     }
   return csv;
+}
+
+/// The simulated session's force log (sim/session/force.csv) followed by 60 s more at 50 Hz holding a press of 0.5 N
+/// from its 6th to its 14th second: a press the recording, which ends with the log's original last sample, cannot hold.
+std::string log_beyond_the_recording(const std::string& log) {
+  const auto last = log.rfind('\n', log.size() - 2);
+  const double t_end = std::stod(log.substr(last + 1));
+  std::string longer = log;
+  for (int i = 1; i <= 3000; ++i) {
+    const double t = t_end + i * 0.02, f = (i > 300 && i < 700) ? 0.5 : 0.0;
+    longer += std::to_string(t) + "," + std::to_string(0.05 + f) + "\n";
+  }
+  return longer;
 }
 
 std::string binary_stl_claiming(std::uint32_t triangles) {
@@ -269,8 +283,9 @@ std::vector<Case> simulate_and_assess_cases() {
   };
 }
 
-/// calibrate, videos as board and tag views, calibrate-pressure, study and compare.
-std::vector<Case> calibration_cases() {
+/// calibrate, videos as board and tag views, calibrate-pressure, presses, study and compare. `session_log`: the
+/// simulated session's force log (sim/session/force.csv).
+std::vector<Case> calibration_cases(const std::string& session_log) {
   const std::vector<std::string> calib{"calibrate", "--grid", "4", "3", "--spacing-mm", "10", "--corners", "c.vnl", "--imagersize", "640", "480",
                                        "--out", "x.cameramodel"};
   auto corners = [](const std::string& bad) {
@@ -281,6 +296,10 @@ std::vector<Case> calibration_cases() {
   const std::vector<std::string> cal_p{"calibrate-pressure", "--presses", "p.csv", "--person", "p1", "--out", "cal.json"};
   const std::vector<std::string> session{"presses", "--video", "grey.mkv", "--force-log", "f.csv", "--camera", "cam.cameramodel",
                                          "--indenter-radius-mm", "2.5", "--slab-mm", "3", "--out", "p.csv"};
+  auto recorded = [](const std::string& video, const std::string& log) {
+    return std::vector<std::string>{"presses", "--video", video, "--force-log", log, "--camera", "sim/session/camera.cameramodel",
+                                    "--indenter-radius-mm", "2.5", "--slab-mm", "3", "--out", "p.csv"};
+  };
   auto presses = [&](const std::string& row) {
     std::string csv = kPresses;
     for (int k = 1; k <= 8; ++k) csv += std::to_string(k) + ",3," + std::to_string(0.01 * k) + ",," + std::to_string(0.01 * k) + "\n";
@@ -329,6 +348,8 @@ std::vector<Case> calibration_cases() {
       {"force log", "force NaN", {{"f.csv", "time_s,force_n\n0,0\n0.1,nan\n"}}, session, {"f.csv", "line 3", "the force 'nan' is not a finite number"}},
       {"force log", "time going back", {{"f.csv", "time_s,force_n\n0,0\n0.1,0\n0.05,0\n"}}, session,
        {"f.csv", "line 4", "is not after the previous sample's"}},
+      {"force log", "duplicated time", {{"f.csv", "time_s,force_n\n0,0\n0.1,0\n0.1,0\n"}}, session,
+       {"f.csv", "line 4", "is not after the previous sample's", "duplicated"}},
       {"force log", "5 samples", {{"f.csv", "time_s,force_n\n0,0\n0.1,0\n0.2,0\n0.3,0\n0.4,0\n"}}, session,
        {"f.csv", "holds 5 samples; at least 10 are needed"}},
       {"force log", "gauge clipped", {{"f.csv", force_log(2, true)}}, session, {"f.csv", "reaches its maximum", "the gauge clipped"}},
@@ -336,6 +357,11 @@ std::vector<Case> calibration_cases() {
       {"force log", "2 presses", {{"f.csv", force_log(2)}}, session, {"f.csv", "holds 2 presses", "needs at least 4"}},
       {"video", "session video of 5 frames", {{"f.csv", force_log(5)}, {"grey.mkv", "<shared>"}}, session,
        {"grey.mkv", "holds 5 frames; a session needs many more"}},
+      // A simulated session (sim/session/: 12 presses, the indenter at 2.5 mm behind a 3 mm slab)
+      {"video", "indenter area over-exposed (a white patch over a tenth of it)", {}, recorded("sim/session/bright.mkv", "sim/session/force.csv"),
+       {"bright.mkv", "press 1, frames", "saturated or over-exposed", "lower the exposure"}},
+      {"force log", "recording shorter than the force log", {{"long.csv", log_beyond_the_recording(session_log)}},
+       recorded("sim/session/session.mkv", "long.csv"), {"long.csv", "line", "lies outside the recording", "shorter than the force log"}},
       {"options", "presses --indenter-radius-mm 0", {{"f.csv", force_log(5)}},
        {"presses", "--video", "grey.mkv", "--force-log", "f.csv", "--camera", "cam.cameramodel", "--indenter-radius-mm", "0", "--slab-mm", "3",
         "--out", "p.csv"},
@@ -352,9 +378,9 @@ std::vector<Case> calibration_cases() {
   };
 }
 
-std::vector<Case> catalogue(const std::string& camera_text) {
+std::vector<Case> catalogue(const std::string& camera_text, const std::string& session_log) {
   std::vector<Case> all;
-  for (auto part : {mesh_cases(), map_cases(camera_text), scene_cases(), simulate_and_assess_cases(), calibration_cases()})
+  for (auto part : {mesh_cases(), map_cases(camera_text), scene_cases(), simulate_and_assess_cases(), calibration_cases(session_log)})
     all.insert(all.end(), std::make_move_iterator(part.begin()), std::make_move_iterator(part.end()));
   return all;
 }
@@ -384,6 +410,18 @@ class BadInputs : public CliTest {
                                         "    - {center: [0.7, 0.7], sigma: 0.25, peak: 0.35, phases: worn}\n");
       const RunResult glare = run_clearfit({"simulate", "glare.yaml", "--out", "sim/glare", "--no-presses", "--quiet"}, d, d, 120);
       if (glare.exit_code != 0) throw std::runtime_error("simulate (glare) failed:\n" + glare.err);
+      // A calibration session (sim/session/) and its video with a static white patch of 8 x 8 px (about a tenth of the
+      // indenter's 15 px radius disc) beside the indenter's centre: that area over-exposed (bright.mkv).
+      const RunResult session = run_clearfit({"simulate-session", "--out", "sim/session", "--quiet", "--size", "96", "72", "--focal-px",
+                                              "360", "--fps", "8", "--presses", "12", "--seed", "3", "--format", "ffv1"},
+                                             d, d, 120);
+      if (session.exit_code != 0) throw std::runtime_error("simulate-session failed:\n" + session.err);
+      const auto centre = nlohmann::json::parse(read_text(d / "sim/session/truth.json")).at("indenter").at("centre_px");
+      const std::string patch = "drawbox=x=" + std::to_string(std::lround(centre[0].get<double>()) + 1) +
+                                ":y=" + std::to_string(std::lround(centre[1].get<double>()) - 3) + ":w=8:h=8:color=white:t=fill";
+      const std::string bright = "ffmpeg -nostdin -v error -y -i " + (d / "sim/session/session.mkv").string() + " -vf " + patch +
+                                 " -c:v ffv1 " + (d / "sim/session/bright.mkv").string();
+      if (std::system(bright.c_str()) != 0) throw std::runtime_error("ffmpeg failed (install the ffmpeg package): " + bright);
       return d / "sim";
     }();
     return dir;
@@ -457,7 +495,7 @@ std::string markdown(const std::vector<Case>& cases) {
 }
 
 TEST_F(BadInputs, EveryCaseExitsTwoNamesTheDefectAndLeavesNothing) {
-  const auto cases = catalogue(read_text(work() / "cam.cameramodel"));
+  const auto cases = catalogue(read_text(work() / "cam.cameramodel"), read_text(work() / "sim/session/force.csv"));
   EXPECT_GE(cases.size(), 80u);
   // The cases run in two folders side by side (each with the same inputs, each case alone in its folder and
   // checked to leave it as it was): a case's time is mostly clearfit's start (about 280 shared libraries mapped
