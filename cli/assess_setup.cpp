@@ -75,9 +75,7 @@ std::unique_ptr<Prepared> prepare(AssessOpts& o) {
   ao.max_motion_px = cap.max_motion_px;
   ao.max_sums_mb = cap.max_mb;
   const AssessSection& as = sc.assess;
-  ao.blanching.smoothing_mm = as.smoothing_mm;
-  if (!as.reference_uv_mm.empty()) ao.blanching.reference_uv_mm = Vec2(as.reference_uv_mm[0], as.reference_uv_mm[1]);
-  ao.blanching.reference_radius_mm = as.reference_radius_mm;
+  ao.blanching = as.blanching();
   ao.thresholds_kpa = as.thresholds_kpa;
   ao.signal_thresholds = as.signal_thresholds;
   ao.signal_threshold_sigmas = as.significance_sigmas;

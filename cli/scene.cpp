@@ -351,6 +351,10 @@ void AssessSection::bind(SceneFields& f) {
   f.key("normalise_exposure", normalise_exposure, "--no-exposure-normalisation",
         "Do not divide each 5-frame chunk by its exposure / white-balance / flicker gain");
   f.key("smoothing_mm", smoothing_mm, "--smoothing-mm", "Gaussian smoothing of the signal on the chart, mm");
+  f.key("skin_blur_mm", skin_blur_mm, "--skin-blur-mm",
+        "The skin's lateral blur of the pressure (Gaussian sigma, mm): the signal reads the pressure blurred by it, a resolution "
+        "error undone to first order and part of each texel's sigma");
+  f.key("curvature_smoothing_mm", curvature_smoothing_mm);
   f.numbers("thresholds_kpa", thresholds_kpa, 0, "--thresholds-kpa", "Hotspot thresholds, kPa (needs a pressure calibration)");
   f.numbers("signal_thresholds", signal_thresholds, 0, "--signal-threshold",
             "Without a calibration: hotspot thresholds on the blanching signal y = ln(G/G0) (default: --significance-sigmas times the noise)");
@@ -383,17 +387,36 @@ void AssessSection::validate() const {
   } catch (const SceneRuleError& e) {
     throw SceneRuleError("vignetting", e.what());
   }
-  if (!(std::isfinite(smoothing_mm) && smoothing_mm >= 0)) rule_broken("smoothing_mm", smoothing_mm, ">= 0 mm");
+  // The signal's keys, each checked alone by BlanchingOptions::validate (their one home) so that the error names its key.
+  for (const auto& [key, value] : {std::pair{"smoothing_mm", &BlanchingOptions::smoothing_mm}, {"skin_blur_mm", &BlanchingOptions::skin_blur_mm},
+                                   {"curvature_smoothing_mm", &BlanchingOptions::curvature_smoothing_mm},
+                                   {"reference_radius_mm", &BlanchingOptions::reference_radius_mm}}) {
+    BlanchingOptions one;
+    one.*value = blanching().*value;
+    try {
+      one.validate();
+    } catch (const std::invalid_argument& e) {
+      throw SceneRuleError(key, e.what());
+    }
+  }
   for (double t : thresholds_kpa)
     if (!(std::isfinite(t) && t > 0)) rule_broken("thresholds_kpa", t, "positive pressures in kPa");
   for (double t : signal_thresholds)
     if (!(std::isfinite(t) && t > 0 && t < 5)) rule_broken("signal_thresholds", t, "positive values of the signal ln(G/G0) below 5");
   if (!(std::isfinite(significance_sigmas) && significance_sigmas >= 1 && significance_sigmas <= 100))
     rule_broken("significance_sigmas", significance_sigmas, "a number of noise sigmas in [1, 100]");
-  if (!(std::isfinite(reference_radius_mm) && reference_radius_mm > 0))
-    rule_broken("reference_radius_mm", reference_radius_mm, "a positive length in mm");
   if (!(std::isfinite(min_hotspot_area_mm2) && min_hotspot_area_mm2 > 0))
     rule_broken("min_hotspot_area_mm2", min_hotspot_area_mm2, "a positive area in mm²");
+}
+
+BlanchingOptions AssessSection::blanching() const {
+  BlanchingOptions o;
+  o.smoothing_mm = smoothing_mm;
+  o.skin_blur_mm = skin_blur_mm;
+  o.curvature_smoothing_mm = curvature_smoothing_mm;
+  if (reference_uv_mm.size() == 2) o.reference_uv_mm = Vec2(reference_uv_mm[0], reference_uv_mm[1]);
+  o.reference_radius_mm = reference_radius_mm;
+  return o;
 }
 
 // ---- the whole file --------------------------------------------------------

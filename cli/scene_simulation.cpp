@@ -174,7 +174,7 @@ class SimulationParser {
     double kg = s.absorption[1];
     num(k, "k_green", p + ".k_green", kg, 0, 1);
     s.absorption = Eigen::Vector3d(0.2, 1.0, 0.3) * kg;
-    num(k, "blur_sigma_mm", p + ".blur_sigma_mm", s.blur_sigma_mm, 0, 10);
+    num(k, "blur_sigma_mm", p + ".blur_sigma_mm", s.blur_sigma_mm, 0, SkinBlur::max_sigma_mm);
     num(k, "von_mises_weight", p + ".von_mises_weight", s.von_mises_weight, 0, 1);
     num(k, "von_mises_depth_mm", p + ".von_mises_depth_mm", s.von_mises_depth_mm, 0.01, 5);
     num(k, "poisson", p + ".poisson", s.poisson, 0, 0.499);

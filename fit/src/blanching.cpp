@@ -2,6 +2,7 @@
 #include <clearfit/error.hpp>
 #include <clearfit/fit/blanching.hpp>
 #include <clearfit/fit/srgb.hpp>
+#include <clearfit/format.hpp>
 #include <cmath>
 #include <limits>
 #include <opencv2/imgproc.hpp>
@@ -221,14 +222,22 @@ ChartField smooth_field(const ChartField& field, double sigma_mm) {
   return out;
 }
 
+void BlanchingOptions::validate() const {
+  auto check = [](bool ok, const char* field, double v, const char* rule) {
+    if (!ok) throw std::invalid_argument(std::string("assess.") + field + " = " + significant_digits(v, 4) + ": must be " + rule);
+  };
+  check(std::isfinite(smoothing_mm) && smoothing_mm >= 0, "smoothing_mm", smoothing_mm, ">= 0 mm");
+  SkinBlur{skin_blur_mm}.validate("assess.skin_blur_mm");
+  check(curvature_smoothing_mm > 0 && curvature_smoothing_mm < 20, "curvature_smoothing_mm", curvature_smoothing_mm,
+        "in (0, 20) mm (the curvature of the blur's first-order term is taken on the signal smoothed this much more)");
+  check(std::isfinite(reference_radius_mm) && reference_radius_mm > 0, "reference_radius_mm", reference_radius_mm, "a positive length in mm");
+  check(!local_spatial_noise || (local_noise_window_mm > 0 && std::isfinite(local_noise_window_mm)), "local_noise_window_mm",
+        local_noise_window_mm, "> 0 mm");
+}
+
 BlanchingSignal compute_blanching(const PhaseAverage& baseline, const PhaseAverage& worn, const InverseMap& inverse,
                                   const BlanchingOptions& options, const InverseMap* baseline_inverse) {
-  if (!(options.smoothing_mm >= 0) || !std::isfinite(options.smoothing_mm))
-    throw std::invalid_argument("compute_blanching: smoothing_mm must be >= 0");
-  if (!(options.skin_blur_mm >= 0 && options.skin_blur_mm < 5) || !(options.curvature_smoothing_mm > 0 && options.curvature_smoothing_mm < 20))
-    throw std::invalid_argument("compute_blanching: skin_blur_mm must be in [0, 5) mm and curvature_smoothing_mm in (0, 20) mm");
-  if (options.local_spatial_noise && !(options.local_noise_window_mm > 0 && std::isfinite(options.local_noise_window_mm)))
-    throw std::invalid_argument("compute_blanching: local_noise_window_mm must be > 0");
+  options.validate();
   BlanchingSignal s;
   const ChartGrid g = grid_of(inverse);
   const InverseMap& base_inv = baseline_inverse ? *baseline_inverse : inverse;

@@ -165,7 +165,8 @@ double robust_scale(std::vector<double> v) {
 }  // namespace
 
 void FieldFitOptions::validate() const {
-  if (!(blur_sigma_mm >= 0 && blur_sigma_mm < 5)) throw InputError("", "--blur-mm", "expected the skin's blur in mm, from 0 to 5");
+  if (!SkinBlur{blur_sigma_mm}.valid())
+    throw InputError("", "--blur-mm", std::string("expected ") + SkinBlur::rule + ", got " + significant_digits(blur_sigma_mm, 4));
   if (!(e_star_kpa >= 0 && e_star_kpa < 1e5))
     throw InputError("", "--e-star-kpa", "expected the skin's plane-strain modulus in kPa (> 0), or 0 to fit it");
   if (samples_per_ring < 1) throw std::invalid_argument("samples_per_ring must be >= 1");

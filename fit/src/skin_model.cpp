@@ -41,7 +41,7 @@ void SkinParameters::validate() const {
     }
   };
   auto finite = [](double v) { return std::isfinite(v); };
-  check(finite(blur_sigma_mm) && blur_sigma_mm >= 0, "blur_sigma_mm", blur_sigma_mm, "must be >= 0");
+  SkinBlur{blur_sigma_mm}.validate("SkinParameters.blur_sigma_mm");
   check(von_mises_weight >= 0 && von_mises_weight <= 1, "von_mises_weight", von_mises_weight, "must be in [0, 1]");
   check(finite(von_mises_depth_mm) && von_mises_depth_mm > 0, "von_mises_depth_mm", von_mises_depth_mm, "must be > 0");
   check(poisson > -1 && poisson < 0.5, "poisson", poisson, "must be in (-1, 0.5)");

@@ -90,6 +90,15 @@ TEST_F(Scene, RulesNameTheKeyOrTheOptionWithTheValue) {
   expect_input_error({"map", "--scene", "part/scene.yaml"}, {"'map.grid_step'", "got 3", "power of two"});
   scene("mesh: slab.obj\ncontact: {normal: [0, 0, 1], angle_deg: 0}\n");
   expect_input_error({"map", "--scene", "part/scene.yaml"}, {"'contact.angle_deg'", "got 0"});
+  // The signal's keys keep their rules in one place each (fit/skin_blur.hpp, BlanchingOptions), named by the scene's key.
+  scene(std::string(kScene) + "assess: {skin_blur_mm: 7}\n");
+  expect_input_error({"map", "--scene", "part/scene.yaml"}, {"scene.yaml", "'assess.skin_blur_mm'", "= 7:", "from 0 to 5"});
+  scene(std::string(kScene) + "assess: {curvature_smoothing_mm: 0}\n");
+  expect_input_error({"map", "--scene", "part/scene.yaml"}, {"scene.yaml", "'assess.curvature_smoothing_mm'", "= 0:", "(0, 20) mm"});
+  scene(std::string(kScene) + "assess: {smoothing_mm: -1}\n");
+  expect_input_error({"map", "--scene", "part/scene.yaml"}, {"scene.yaml", "'assess.smoothing_mm'", "= -1:"});
+  scene(kScene);
+  expect_input_error({"assess", "part/scene.yaml", "--skin-blur-mm", "-0.5"}, {"--skin-blur-mm", "= -0.5:"});
   // A key the command line gave is not read from the file: the scene's bad value is never seen.
   scene(std::string(kScene) + "skin_ior: 0.5\n");
   const RunResult r = run({"map", "--scene", "part/scene.yaml", "--no-cache", "--skin-ior", "1.38", "--stats", "s.json"});

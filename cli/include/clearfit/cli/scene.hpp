@@ -347,6 +347,8 @@ struct AssessSection {
   TimeSeriesSection timeseries;
   bool normalise_exposure = AssessmentOptions{}.normalise_gains;  ///< per-chunk exposure / white-balance / flicker gains
   double smoothing_mm = BlanchingOptions{}.smoothing_mm;
+  double skin_blur_mm = BlanchingOptions{}.skin_blur_mm;                      ///< the skin's lateral blur (fit/skin_blur.hpp)
+  double curvature_smoothing_mm = BlanchingOptions{}.curvature_smoothing_mm;  ///< of the blur's first-order term
   std::vector<double> thresholds_kpa = AssessmentOptions{}.thresholds_kpa;
   std::vector<double> signal_thresholds;  ///< without a calibration: thresholds on the signal y; empty: significance_sigmas
   double significance_sigmas = AssessmentOptions{}.signal_threshold_sigmas;
@@ -355,6 +357,8 @@ struct AssessSection {
   double min_hotspot_area_mm2 = AssessmentOptions{}.min_hotspot_area_mm2;
   void bind(SceneFields& f);
   void validate() const;
+  /// The signal's options these keys give (the others at their defaults); their rules are BlanchingOptions'.
+  BlanchingOptions blanching() const;
 };
 
 /// `simulation:` (clearfit simulate). Read by hand in cli/scene_simulation.cpp

@@ -16,6 +16,7 @@
 // 8-bit units) is kept for comparison with its figures.
 #include <clearfit/fit/capture.hpp>
 #include <clearfit/fit/chart_field.hpp>
+#include <clearfit/fit/skin_blur.hpp>
 #include <clearfit/refraction/inverse_map.hpp>
 
 #include <optional>
@@ -26,15 +27,15 @@ namespace clearfit {
 
 struct BlanchingOptions {
   double smoothing_mm = 0.25;            ///< Gaussian σ on the chart, mm (0: none)
-  /// The skin spreads the contact pressure laterally before it blanches (SKIN.md: a Gaussian of about
-  /// 0.3 mm, as FieldFitOptions::blur_sigma_mm), and the feature is smoothed by smoothing_mm on top: the
+  /// The skin spreads the contact pressure laterally before it blanches (skin_blur.hpp: a Gaussian of
+  /// about 0.3 mm; scene key assess.skin_blur_mm), and the feature is smoothed by smoothing_mm on top: the
   /// signal reads the contact pressure blurred by both, lower at a peak and higher at a foot by
   /// ½·(blur² + smoothing²)·∇²y. That resolution error is part of each texel's σ (assessment.cpp).
-  double skin_blur_mm = 0.3;
+  double skin_blur_mm = SkinBlur{}.sigma_mm;
   /// The curvature ∇²y of that term is taken on y smoothed by this much more (mm): the first order holds
   /// for features wider than the blur, and a narrower Laplacian is mostly noise. Measured: 0.2 / 0.5 / 1.0 mm
   /// gave SigmaCoverage 86.7 / 91.6 / 91.9 % and the study plate's sensitivity at 5.5 kPa 73 / 87 / 99 %.
-  double curvature_smoothing_mm = 1.0;
+  double curvature_smoothing_mm = 1.0;  ///< scene key assess.curvature_smoothing_mm
   std::optional<Vec2> reference_uv_mm;   ///< centre of a reference disk on the chart
   double reference_radius_mm = 2.0;      ///< its radius
   std::vector<std::uint8_t> excluded;    ///< per chart texel: 1 = left out, unseen (glare, glare.hpp); empty: none
@@ -64,6 +65,9 @@ struct BlanchingOptions {
   /// adds nothing, so a pressed place keeps its own noise.
   bool local_spatial_noise = false;
   double local_noise_window_mm = 2.0;
+  /// Throws std::invalid_argument naming the field as its scene key (assess.smoothing_mm, assess.skin_blur_mm,
+  /// ...), its value and the rule.
+  void validate() const;
 };
 
 struct BlanchingSignal {

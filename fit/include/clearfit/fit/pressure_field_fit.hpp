@@ -22,12 +22,13 @@
 // uncertainty included).
 #include <clearfit/fit/indenter_field.hpp>
 #include <clearfit/fit/pressure_model.hpp>
+#include <clearfit/fit/skin_blur.hpp>
 
 namespace clearfit {
 
 struct FieldFitOptions {
   PressureField field = PressureField::punch;
-  double blur_sigma_mm = 0.3;   ///< the skin's lateral blur (SKIN.md)
+  double blur_sigma_mm = SkinBlur{}.sigma_mm;  ///< the skin's lateral blur (skin_blur.hpp owns its default and rule)
   int samples_per_ring = 8;
   double e_star_kpa = 0;        ///< hertz: the skin's plane-strain modulus E* (kPa); 0: fitted
   void validate() const;        ///< throws InputError naming --blur-mm or --e-star-kpa

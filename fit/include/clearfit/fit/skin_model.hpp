@@ -20,6 +20,7 @@
 // centre). With a zero-mean pulse, y averaged over whole pulse periods is the
 // same (y = k_G·B·(1 + a_p·g) is linear in g).
 #include <clearfit/fit/chart_field.hpp>
+#include <clearfit/fit/skin_blur.hpp>
 
 #include <Eigen/Core>
 #include <cstdint>
@@ -45,7 +46,7 @@ struct SkinTone {
 
 struct SkinParameters {
   // 1. drive
-  double blur_sigma_mm = 0.3;
+  double blur_sigma_mm = SkinBlur{}.sigma_mm;  ///< the lateral blur (skin_blur.hpp owns its default and rule)
   double von_mises_weight = 0.0;   ///< 0..1: share of the von Mises stress in the drive
   double von_mises_depth_mm = 0.2;
   double poisson = 0.48;
