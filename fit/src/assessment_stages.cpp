@@ -217,8 +217,9 @@ void add_position_to_centres(std::vector<Hotspot>& hotspots, const std::vector<i
     if (labels[k] > 0 && labels[k] <= static_cast<int>(hotspots.size()) && std::isfinite(position_mm.value[k]))
       sum[labels[k]] += position_mm.value[k] * position_mm.value[k], ++n[labels[k]];
   for (Hotspot& h : hotspots)
-    if (n[h.id] > 0 && std::isfinite(h.centre_of_pressure_sigma_mm))
-      h.centre_of_pressure_sigma_mm = std::sqrt(h.centre_of_pressure_sigma_mm * h.centre_of_pressure_sigma_mm + 2 * sum[h.id] / n[h.id]);
+    if (n[h.id] > 0)
+      for (double* sigma : {&h.centre_of_pressure_sigma_mm, &h.centroid_sigma_mm})
+        if (std::isfinite(*sigma)) *sigma = std::sqrt(*sigma * *sigma + 2 * sum[h.id] / n[h.id]);
 }
 
 std::vector<std::uint8_t> calibrated_pressure(const PressureCalibration& calibration, bool spatial_noise, const AssessmentOptions& o,

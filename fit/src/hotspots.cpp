@@ -134,6 +134,9 @@ struct PlaceSums {
   // shared), kept as moments Σk, Σk x, Σk |x|².
   double k0 = 0, k2 = 0;
   Vec3 k1 = Vec3::Zero();
+  // The centroid's variance likewise (its outline's term alone): moments m0, m1, m2.
+  double m0 = 0, m2 = 0;
+  Vec3 m1 = Vec3::Zero();
   Vec2 uv = Vec2::Zero();
   std::set<int> faces;
   long long texels = 0, flagged = 0;
@@ -208,12 +211,14 @@ std::vector<Hotspot> find_hotspots(const ChartField& field, const ChartField* si
       if (std::isfinite(s) && s > 0 && std::abs(v - thresholds.front()) < s && raster.face[k] >= 0) {
         // The outline moves with the noise by σ/|∇v| and takes texels of value t with it: over the band
         // |v − t| < σ (a line of density 1/(2σ)) each texel adds w t² σ ℓ / (2|∇v|) times (x − c)²/(Σ w v)², its
-        // noise shared along the outline over ℓ = √(correlation area).
+        // noise shared along the outline over ℓ = √(correlation area); to the centroid (weights w, not w v)
+        // w σ ℓ / (2|∇v|) times (x − c)²/(Σ w)².
         const double gradient = gradient_norm(field, i, j);
         if (gradient > 0) {
           const double t = thresholds.front(), ell = std::sqrt(std::max(area, 1.0 / options.samples_per_mm2));
-          const double kk = area * t * t * s * ell / (2 * gradient);
+          const double mm = area * s * ell / (2 * gradient), kk = mm * t * t;
           a.k0 += kk, a.k1 += kk * raster.point[k], a.k2 += kk * raster.point[k].squaredNorm();
+          a.m0 += mm, a.m1 += mm * raster.point[k], a.m2 += mm * raster.point[k].squaredNorm();
         }
       }
       if (v < thresholds.front()) continue;  // within σ of the outline: in the lowest level's σ only
@@ -278,6 +283,10 @@ std::vector<Hotspot> find_hotspots(const ChartField& field, const ChartField* si
         const Vec3 cop = a.cp / a.sum_vf;
         const double trace = a.k2 - 2 * cop.dot(a.k1) + cop.squaredNorm() * a.k0;
         h.centre_of_pressure_sigma_mm = std::sqrt(std::max(0.0, trace)) / std::abs(a.sum_vf);
+      }
+      if (sigma) {
+        const Vec3& c = h.centroid_mean_mm;
+        h.centroid_sigma_mm = std::sqrt(std::max(0.0, a.m2 - 2 * c.dot(a.m1) + c.squaredNorm() * a.m0)) / a.sum_w;
       }
     } else {
       h.centroid_mm = h.centroid_mean_mm = h.centre_of_pressure_mm = Vec3::Constant(kNaN);

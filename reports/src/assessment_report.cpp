@@ -214,6 +214,7 @@ json hotspot_json(const Hotspot& h, bool calibrated) {
             {"area_mm2", num(h.area_mm2)},
             {"half_peak_area_mm2", num(h.half_peak_area_mm2)},
             {"centroid_mm", vec(h.centroid_mm)},
+            {"centroid_sigma_mm", num(h.centroid_sigma_mm)},
             {"centroid_mean_mm", vec(h.centroid_mean_mm)},
             {"centre_of_pressure_mm", vec(h.centre_of_pressure_mm)},
             {"centre_of_pressure_sigma_mm", num(h.centre_of_pressure_sigma_mm)},

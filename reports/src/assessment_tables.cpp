@@ -35,7 +35,7 @@ void write_hotspots_csv(const Assessment& a, const std::filesystem::path& path) 
   s << "id,peak" << unit << ",peak_sigma" << unit << ",mean" << unit << ",mean_sigma" << unit << ",area_mm2,half_peak_area_mm2";
   for (double t : a.thresholds) s << ",area_ge_" << threshold_name(t, a.calibrated) << "_mm2,area_sigma_ge_" << threshold_name(t, a.calibrated) << "_mm2";
   s << ",centroid_x_mm,centroid_y_mm,centroid_z_mm,centre_of_pressure_x_mm,centre_of_pressure_y_mm,centre_of_pressure_z_mm"
-       ",centre_of_pressure_sigma_mm,unseen_area_mm2,unseen_share,texels,saturated_texels,touches_glare\n";
+       ",centre_of_pressure_sigma_mm,centroid_sigma_mm,unseen_area_mm2,unseen_share,texels,saturated_texels,touches_glare\n";
   for (const Hotspot& h : a.hotspots) {
     s << h.id << ',' << fixed_digits(h.peak, digits, "") << ',' << fixed_digits(h.peak_sigma, digits, "")
       << ',' << fixed_digits(h.mean, digits, "") << ',' << fixed_digits(h.mean_sigma, digits, "") << ','
@@ -49,7 +49,7 @@ void write_hotspots_csv(const Assessment& a, const std::filesystem::path& path) 
     }
     for (const Vec3* p : {&h.centroid_mm, &h.centre_of_pressure_mm})
       for (int c = 0; c < 3; ++c) s << ',' << fixed_digits((*p)[c], 4, "");
-    s << ',' << fixed_digits(h.centre_of_pressure_sigma_mm, 4, "");
+    s << ',' << fixed_digits(h.centre_of_pressure_sigma_mm, 4, "") << ',' << fixed_digits(h.centroid_sigma_mm, 4, "");
     const double both = h.area_mm2 + h.unseen_area_mm2;
     s << ',' << fixed_digits(h.unseen_area_mm2, 4, "") << ','
       << fixed_digits(both > 0 ? h.unseen_area_mm2 / both : 0.0, 4, "") << ',' << h.texels << ','

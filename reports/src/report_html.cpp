@@ -481,6 +481,7 @@ std::string hotspot_info(const json& h, const std::string& id, bool calibrated) 
       const json& t = at(level, calibrated ? "threshold_kpa" : "threshold_signal");
       s += "area &ge; " + num(t, calibrated ? 1 : 4) + (calibrated ? " kPa" : "") + ": " + level_area(level) + " mm&sup2;<br>";
     }
+  if (is_number(at(h, "centroid_sigma_mm"))) s += "centroid &plusmn; " + num(at(h, "centroid_sigma_mm"), 2) + " mm<br>";
   if (is_number(at(h, "centre_of_pressure_sigma_mm")))
     s += "centre of pressure &plusmn; " + num(at(h, "centre_of_pressure_sigma_mm"), 2) + " mm<br>";
   if (is_number(at(h, "unseen_area_mm2")) && h["unseen_area_mm2"].get<double>() > 0)
@@ -578,7 +579,7 @@ std::string hotspot_table(const json& report, bool calibrated) {
                   : "<th>peak signal</th><th>mean signal</th>";
   for (std::size_t l = 0; l < levels; ++l)
     s += "<th>area &ge; " + num(thresholds[l], calibrated ? 1 : 4) + (calibrated ? " kPa" : "") + " (mm&sup2;)</th>";
-  s += "<th>centroid x, y, z (mm)</th><th>centre of pressure &sigma; (mm)</th><th>unseen beside it (mm&sup2;)</th><th>saturated texels</th><th>at glare</th></tr></thead><tbody>";
+  s += "<th>centroid x, y, z (mm)</th><th>centroid &sigma; (mm)</th><th>centre of pressure &sigma; (mm)</th><th>unseen beside it (mm&sup2;)</th><th>saturated texels</th><th>at glare</th></tr></thead><tbody>";
   for (const json& h : hotspots) {
     const json& c = at(h, "centroid_mm");
     std::string centroid = kDash;
@@ -599,7 +600,7 @@ std::string hotspot_table(const json& report, bool calibrated) {
       s += cell(key.c_str(), at(level, "area_mm2"), level_area(level));
     }
     const json& unseen = at(h, "unseen_area_mm2");
-    s += cell("centroid_mm", c, centroid) +
+    s += cell("centroid_mm", c, centroid) + cell("centroid_sigma_mm", at(h, "centroid_sigma_mm"), num(at(h, "centroid_sigma_mm"), 2)) +
          cell("centre_of_pressure_sigma_mm", at(h, "centre_of_pressure_sigma_mm"), num(at(h, "centre_of_pressure_sigma_mm"), 2)) +
          cell("unseen_area_mm2", unseen,
               num(unseen, 1) + (is_number(unseen) && unseen.get<double>() > 0 ? " (" + percent(at(h, "unseen_share")) + ")" : "")) +

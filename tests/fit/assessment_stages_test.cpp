@@ -239,12 +239,14 @@ TEST(AssessmentStages, PositionSigmasAddInQuadratureAndOnTheCentres) {
   EXPECT_TRUE(std::isnan(alone.value[1]));
   // A place over texels of σ 1, 1, 2 and one without: mean σ² = 2, two axes: 0.1² + 2·2.
   std::vector<Hotspot> h(2);
-  h[0].id = 1, h[0].centre_of_pressure_sigma_mm = 0.1;
-  h[1].id = 2, h[1].centre_of_pressure_sigma_mm = std::nan("");
+  h[0].id = 1, h[0].centre_of_pressure_sigma_mm = 0.1, h[0].centroid_sigma_mm = 0.2;
+  h[1].id = 2, h[1].centre_of_pressure_sigma_mm = std::nan(""), h[1].centroid_sigma_mm = std::nan("");
   const ChartGrid g5 = grid(5, 1, 0.1);
   add_position_to_centres(h, {1, 1, 1, 1, 2}, ChartField{g5, {1.f, 1.f, 2.f, kNaN, 5.f}});
   EXPECT_NEAR(h[0].centre_of_pressure_sigma_mm, std::sqrt(0.01 + 2 * 2.0), 1e-9);
+  EXPECT_NEAR(h[0].centroid_sigma_mm, std::sqrt(0.04 + 2 * 2.0), 1e-9);
   EXPECT_TRUE(std::isnan(h[1].centre_of_pressure_sigma_mm));
+  EXPECT_TRUE(std::isnan(h[1].centroid_sigma_mm));
 }
 
 // ---- The blur's first-order effect and the signal's σ ----

@@ -119,9 +119,10 @@ TEST(Hotspots, CentroidLiesOnACurvedSurfaceAndTheMeanInside) {
   EXPECT_NEAR((hs[0].centroid_mm - hs[0].centroid_mean_mm).norm(), r_in - radius(hs[0].centroid_mean_mm), 0.01);
 }
 
-TEST(Hotspots, CentreOfPressureSigmaMatchesTheScatterOverNoiseRealisations) {
+TEST(Hotspots, CentreOfPressureAndCentroidSigmasMatchTheScatterOverNoiseRealisations) {
   // A Gaussian place plus noise smoothed like the assessment's signal (white per texel, then a Gaussian of
-  // σ_s): the centre of pressure's rms scatter over realisations against its propagated σ.
+  // σ_s): the centre of pressure's and the centroid's rms scatter over realisations against their propagated σ.
+  // The centroid moves only with the outline, so it is the check of the outline's term.
   test::TracePart part(shapes::slab(10, 10, 2, 4));
   const Chart chart = compute_chart(part.mesh, part.contact);
   const ChartGrid grid = ChartGrid::covering(chart.uv_min, chart.uv_max, 0.05);
@@ -143,7 +144,7 @@ TEST(Hotspots, CentreOfPressureSigmaMatchesTheScatterOverNoiseRealisations) {
   const auto truth = find_hotspots(clean, &sigma, nullptr, raster, o, nullptr, &part.mesh);
   ASSERT_EQ(truth.size(), 1u);
   cv::RNG rng(7);
-  double sum_d2 = 0, sum_predicted = 0;
+  double sum_d2 = 0, sum_predicted = 0, sum_c2 = 0, sum_c_predicted = 0;
   const int runs = 200;
   for (int r = 0; r < runs; ++r) {
     cv::Mat white(grid.height, grid.width, CV_64F), smoothed;
@@ -156,12 +157,19 @@ TEST(Hotspots, CentreOfPressureSigmaMatchesTheScatterOverNoiseRealisations) {
     ASSERT_GE(hs.size(), 1u);
     sum_d2 += (hs[0].centre_of_pressure_mm - truth[0].centre_of_pressure_mm).squaredNorm();
     sum_predicted += hs[0].centre_of_pressure_sigma_mm;
+    sum_c2 += (hs[0].centroid_mm - truth[0].centroid_mm).squaredNorm();
+    sum_c_predicted += hs[0].centroid_sigma_mm;
   }
   const double measured = std::sqrt(sum_d2 / runs), predicted = sum_predicted / runs;
   std::printf("centre of pressure: rms scatter %.4f mm over %d realisations, propagated sigma %.4f mm\n", measured, runs, predicted);
   EXPECT_NEAR(predicted, measured, 0.15 * measured);
+  const double c_measured = std::sqrt(sum_c2 / runs), c_predicted = sum_c_predicted / runs;
+  std::printf("centroid: rms scatter %.4f mm, propagated sigma %.4f mm\n", c_measured, c_predicted);
+  EXPECT_NEAR(c_predicted, c_measured, 0.2 * c_measured);
   // Without a sigma field there is no σ.
-  EXPECT_TRUE(std::isnan(find_hotspots(clean, nullptr, nullptr, raster, o, nullptr, &part.mesh)[0].centre_of_pressure_sigma_mm));
+  const Hotspot without = find_hotspots(clean, nullptr, nullptr, raster, o, nullptr, &part.mesh)[0];
+  EXPECT_TRUE(std::isnan(without.centre_of_pressure_sigma_mm));
+  EXPECT_TRUE(std::isnan(without.centroid_sigma_mm));
 }
 
 }  // namespace

@@ -105,6 +105,7 @@ inline json make_assessment_folder(const fs::path& dir, const FixtureOptions& o 
       h["mean_kpa"] = mean(4.3);
       h["mean_sigma_kpa"] = 0.4;
       h["centre_of_pressure_sigma_mm"] = 0.01 * b.sigma_mm + 0.02;
+      h["centroid_sigma_mm"] = 0.015 * b.sigma_mm + 0.01;
     } else {
       h["threshold_kpa"] = nullptr;
       h["peak_kpa"] = h["peak_sigma_kpa"] = h["mean_kpa"] = h["mean_sigma_kpa"] = nullptr;

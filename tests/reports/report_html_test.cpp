@@ -88,7 +88,7 @@ TEST_F(ReportHtml, HotspotTableMatchesReportJson) {
     std::map<std::string, std::pair<std::string, std::string>> by_key;
     for (auto c = std::sregex_iterator(cells.begin(), cells.end(), cell_re); c != std::sregex_iterator(); ++c)
       by_key[(*c)[1]] = {(*c)[2], (*c)[3]};
-    for (const char* key : {"peak_kpa", "peak_sigma_kpa", "mean_kpa", "mean_sigma_kpa", "centre_of_pressure_sigma_mm"}) {
+    for (const char* key : {"peak_kpa", "peak_sigma_kpa", "mean_kpa", "mean_sigma_kpa", "centroid_sigma_mm", "centre_of_pressure_sigma_mm"}) {
       ASSERT_TRUE(by_key.count(key)) << key;
       EXPECT_DOUBLE_EQ(std::stod(by_key[key].first), h[key].get<double>()) << key;
       EXPECT_EQ(by_key[key].second, fixed2(h[key].get<double>())) << key;

@@ -58,7 +58,7 @@ void warn_projection_sigma(const ProjectionSigmaOnContact& s, std::vector<std::s
 /// The pose's and the intrinsics' position σ in quadrature (either may be empty; NaN in one: the other).
 ChartField position_sigma_total(const ChartField& pose, const ChartField& intrinsics);
 
-/// Adds the position's σ to each hotspot's centre of pressure: a pose error shifts the whole place
+/// Adds the position's σ to each hotspot's centre of pressure and centroid: a pose error shifts the whole place
 /// (two lateral axes, mean σ_pos² over the place's texels), in quadrature with the noise's term.
 /// `labels`: place id per texel (0 = none), as find_hotspots writes them.
 void add_position_to_centres(std::vector<Hotspot>& hotspots, const std::vector<int>& labels, const ChartField& position_mm);

@@ -57,6 +57,10 @@ struct Hotspot {
   /// (texels without σ, e.g. saturated, add nothing), plus the outline's motion (texels within σ of the
   /// lowest threshold move it by σ/|∇v|); NaN without a sigma field.
   double centre_of_pressure_sigma_mm = std::numeric_limits<double>::quiet_NaN();
+  /// 1-σ of the centroid (mm, likewise the rms distance to the true one): it moves only with the outline
+  /// (texels within σ of the lowest threshold move it by σ/|∇v|, their noise shared along it over the
+  /// correlation length); NaN without a sigma field.
+  double centroid_sigma_mm = std::numeric_limits<double>::quiet_NaN();
   Vec2 centroid_uv_mm = Vec2::Zero();
   std::vector<int> faces;             ///< mesh faces covered (ascending)
   long long texels = 0;
