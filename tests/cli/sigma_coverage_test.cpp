@@ -6,6 +6,14 @@
 // pressures, calibration.json `limits`) and whose estimate has a σ; texels whose truth is in range but whose
 // estimate is below detection or saturated have no interval and are counted apart (printed). Nothing else is
 // left out: no edge or steep-gradient texels are excluded.
+// The hotspots' figures against the truth's places (the truth thresholded at the lowest threshold, each texel to
+// the nearer source): every place found has an area and a centroid σ, and how often the 95 % intervals of its
+// mean, area, peak and centroid hold the truth is printed (the centroid's σ is the rms distance in the plane: 95 %
+// within 1.73σ). The thresholds (6.5 and 8 kPa) lie above this capture's detection limit (about 5.3 kPa: the held
+// capture's 5σ gate), so that a place's outline is where the pressure crosses the threshold; below the limit the
+// outline is where the signal stops being significant, which the σ of the area and centroid do not model (at
+// 4.3 kPa both came out 0 and the areas 25 % small).
+// CLEARFIT_SIGMA_SEEDS=11,12,... runs other seeds than the test's 1–4 (seeds not tuned on).
 #include "cli_support.hpp"
 #include "slab_part.hpp"
 
@@ -16,6 +24,8 @@
 #include <cstdio>
 #include <cstdlib>
 #include <limits>
+#include <map>
+#include <sstream>
 
 namespace clearfit::cli_test {
 namespace {
@@ -23,7 +33,72 @@ namespace {
 struct Counts {
   long long texels = 0, inside = 0, censored = 0;  ///< censored: truth in range, estimate below detection or saturated
   double sum_z2 = 0, sum_z = 0;
+  /// The hotspots' figures (mean, area, centroid, peak): how many had a σ, how many held the truth.
+  std::map<std::string, std::pair<int, int>> places;
 };
+
+/// The sources the scene below renders: centre on the chart (mm).
+const std::vector<Vec2> kSources{{8, 9}, {17, 9}};
+
+/// The truth's places at `threshold` (kPa): texels at or above it, each to the nearer source; area (mm²), mean
+/// (kPa), peak (kPa) and area-weighted centroid (chart mm).
+struct TruthPlace {
+  double area = 0, sum = 0, peak = 0;
+  Vec2 centroid = Vec2::Zero();
+};
+std::vector<TruthPlace> truth_places(const npy::Float32Array& truth, const nlohmann::json& grid, double threshold) {
+  std::vector<TruthPlace> out(kSources.size());
+  const double t_mm = grid["texel_mm"];
+  const Vec2 origin(grid["uv_origin_mm"][0].get<double>(), grid["uv_origin_mm"][1].get<double>());
+  const std::size_t w = truth.shape[1];
+  for (std::size_t k = 0; k < truth.values.size(); ++k) {
+    const double v = truth.values[k];
+    if (!(v >= threshold)) continue;
+    const Vec2 uv = origin + t_mm * Vec2(static_cast<double>(k % w), static_cast<double>(k / w));
+    const std::size_t s = (uv - kSources[0]).norm() < (uv - kSources[1]).norm() ? 0 : 1;
+    out[s].area += t_mm * t_mm, out[s].sum += v * t_mm * t_mm, out[s].peak = std::max(out[s].peak, v);
+    out[s].centroid += t_mm * t_mm * uv;
+  }
+  for (auto& p : out)
+    if (p.area > 0) p.centroid /= p.area, p.sum /= p.area;
+  return out;
+}
+
+/// The report's places against the truth's: each figure with a σ counted, and whether its 95 % interval holds the truth.
+void check_places(const nlohmann::json& report, const npy::Float32Array& truth, const nlohmann::json& grid, int seed, Counts& c) {
+  const double threshold = report["thresholds_kpa"][0];
+  const auto places = truth_places(truth, grid, threshold);
+  for (std::size_t s = 0; s < kSources.size(); ++s) {
+    const nlohmann::json* best = nullptr;
+    double best_d = 1e9;
+    for (const auto& h : report["hotspots"]) {
+      const double d = (Vec2(h["centroid_uv_mm"][0].get<double>(), h["centroid_uv_mm"][1].get<double>()) - places[s].centroid).norm();
+      if (d < best_d) best_d = d, best = &h;
+    }
+    if (!best || best_d > 2) {
+      ADD_FAILURE() << "seed " << seed << ", source " << s << ": no place found near the truth's";
+      continue;
+    }
+    const auto& h = *best;
+    auto count = [&](const std::string& what, double estimate, double sigma, double truth_value, double bound) {
+      if (!std::isfinite(sigma) || !(sigma > 0)) {
+        std::printf("  seed %d, source %zu, %s %.3f (truth %.3f): no sigma\n", seed, s, what.c_str(), estimate, truth_value);
+        return;
+      }
+      const double z = (estimate - truth_value) / sigma;
+      std::printf("  seed %d, source %zu, %s %.3f +- %.3f (truth %.3f): z %+.2f\n", seed, s, what.c_str(), estimate, sigma, truth_value, z);
+      c.places[what].first += 1;
+      c.places[what].second += std::abs(z) <= bound;
+    };
+    auto number = [](const nlohmann::json& j) { return j.is_number() ? j.get<double>() : std::numeric_limits<double>::quiet_NaN(); };
+    count("mean", number(h["mean_kpa"]), number(h["mean_sigma_kpa"]), places[s].sum, 1.96);
+    count("area", number(h["area_mm2"]), number(h["levels"][0]["area_sigma_mm2"]), places[s].area, 1.96);
+    count("peak", number(h["peak_kpa"]), number(h["peak_sigma_kpa"]), places[s].peak, 1.96);
+    count("centroid", best_d, number(h["centroid_sigma_mm"]), 0.0, std::sqrt(5.991 / 2));
+    EXPECT_GT(number(h["levels"][0]["area_sigma_mm2"]), 0) << "seed " << seed << ", source " << s;
+    EXPECT_GT(number(h["centroid_sigma_mm"]), 0) << "seed " << seed << ", source " << s;
+  }
+}
 
 /// One seed: simulate, calibrate, assess in `dir`; the texels with an estimate against the truth.
 Counts run_seed(const fs::path& dir, int seed) {
@@ -39,7 +114,8 @@ Counts run_seed(const fs::path& dir, int seed) {
   write_text(dir / "scene.yaml", "mesh: slab.obj\nior: 1.49\ncontact: {group: contact}\ncamera: cam.cameramodel\n"
                                  "outputs: {folder: out, texel_mm: 0.1}\n"
                                  "captures: {baseline: captures/baseline.mkv, worn: captures/worn.mkv, window_frames: 40}\n"
-                                 "calibration: {pressure: captures/calibration.json, person: wearer-1}\n");
+                                 "calibration: {pressure: captures/calibration.json, person: wearer-1}\n"
+                                 "assess: {thresholds_kpa: [6.5, 8]}\n");
   const RunResult sim = run_clearfit({"simulate", "sim.yaml", "--out", "captures", "--quiet", "--no-cache"}, dir, dir, 120);
   if (sim.exit_code != 0) throw std::runtime_error("simulate failed:\n" + sim.err);
   const RunResult cal = run_clearfit({"calibrate-pressure", "--presses", "captures/presses.csv", "--person", "wearer-1", "--camera",
@@ -84,6 +160,7 @@ Counts run_seed(const fs::path& dir, int seed) {
     c.sum_z2 += z * z;
     c.sum_z += z;
   }
+  check_places(nlohmann::json::parse(read_text(dir / "out" / "report.json")), truth, tg, seed, c);
   return c;
 }
 
@@ -91,7 +168,13 @@ TEST(SigmaCoverage, NinetyFivePercentIntervalsHoldTheTruth) {
   const fs::path root = fs::temp_directory_path() / ("clearfit_sigma_coverage_" + std::to_string(::getpid()));
   fs::remove_all(root);
   Counts all;
-  for (int seed : {1, 2, 3, 4}) {
+  std::vector<int> seeds{1, 2, 3, 4};
+  if (const char* list = std::getenv("CLEARFIT_SIGMA_SEEDS")) {
+    seeds.clear();
+    std::stringstream s(list);
+    for (std::string item; std::getline(s, item, ',');) seeds.push_back(std::stoi(item));
+  }
+  for (int seed : seeds) {
     const Counts c = run_seed(root / std::to_string(seed), seed);
     std::printf("seed %d: %lld texels (truth in the calibration's range, with an estimate; %lld more below detection or "
                 "saturated), %.1f %% inside p ± 1.96σ, mean z %+.2f, rms z %.2f\n",
@@ -99,10 +182,13 @@ TEST(SigmaCoverage, NinetyFivePercentIntervalsHoldTheTruth) {
                 std::sqrt(c.sum_z2 / std::max(1LL, c.texels)));
     EXPECT_GT(c.texels, 500) << "seed " << seed;
     all.texels += c.texels, all.inside += c.inside, all.sum_z2 += c.sum_z2, all.sum_z += c.sum_z;
+    for (const auto& [what, n] : c.places) all.places[what].first += n.first, all.places[what].second += n.second;
   }
+  for (const auto& [what, n] : all.places)
+    std::printf("hotspot %s: the 95 %% interval holds the truth %d of %d times\n", what.c_str(), n.second, n.first);
   const double coverage = static_cast<double>(all.inside) / all.texels;
-  std::printf("coverage of the 95 %% intervals: %.1f %% of %lld texels over 4 seeds (mean z %+.2f, rms z %.2f)\n", 100 * coverage,
-              all.texels, all.sum_z / all.texels, std::sqrt(all.sum_z2 / all.texels));
+  std::printf("coverage of the 95 %% intervals: %.1f %% of %lld texels over %zu seeds (mean z %+.2f, rms z %.2f)\n", 100 * coverage,
+              all.texels, seeds.size(), all.sum_z / all.texels, std::sqrt(all.sum_z2 / all.texels));
   EXPECT_GE(coverage, 0.90);
   EXPECT_LE(coverage, 0.98);
   if (!HasFailure() && std::getenv("CLEARFIT_KEEP_TEST_OUTPUT") == nullptr) fs::remove_all(root);
