@@ -149,7 +149,8 @@ nlohmann::json report_json(const PressureFitResult& r, const std::string& presse
           {"warnings", r.warnings}};
 }
 
-void print_summary(const PressureFitResult& r, RobustLoss loss) {
+/// `fitted`: what the RMSE counts ("presses", or "rings" for a field fit: each press's rings of the radial profile).
+void print_summary(const PressureFitResult& r, RobustLoss loss, const char* fitted) {
   const PressureCalibration& cal = r.calibration;
   std::printf("person %s: %d presses at %d pressure levels, %s..%s kPa; robust loss %s\n", cal.person.c_str(),
               cal.presses, r.levels, significant_digits(cal.p_min_kpa, 3, "-").c_str(),
@@ -169,9 +170,9 @@ void print_summary(const PressureFitResult& r, RobustLoss loss) {
               significant_digits(r.r2_logistic, 3, "-").c_str(),
               significant_digits(r.linear.r2, 3, "-").c_str(), kStudyMeanR2);
   std::printf(
-      "  stored model: %s; RMSE %s kPa over %d presses inside the invertible range (%s kPa without "
+      "  stored model: %s; RMSE %s kPa over %d %s inside the invertible range (%s kPa without "
       "outliers)\n",
-      to_string(cal.model), significant_digits(r.rmse_kpa, 3, "-").c_str(), r.presses_in_range,
+      to_string(cal.model), significant_digits(r.rmse_kpa, 3, "-").c_str(), r.presses_in_range, fitted,
       significant_digits(r.rmse_kpa_inliers, 3, "-").c_str());
   std::printf(
       "  signal noise %s: detection limit %s (%s kPa), saturation %s (%s kPa)\n",
@@ -294,7 +295,7 @@ Run add_calibrate_pressure(CLI::App& app) {
     std::vector<unsigned char> png;
     if (!o->plot.empty() && !cv::imencode(".png", plot_fit(drawn, points), png))
       throw std::runtime_error("PNG encoding of the fit plot failed");
-    print_summary(r, fo.loss);
+    print_summary(r, fo.loss, field == "uniform" ? "presses" : "rings");
     if (field == "hertz")
       std::printf("pressure field: hertz (a sphere: Hertz's pressure over each force's contact radius, blurred; the presses' radial "
                   "profiles); E* %s +- %s kPa (%s)\n", significant_digits(r.e_star_kpa, 4, "-").c_str(), significant_digits(r.e_star_se_kpa, 3, "-").c_str(),
