@@ -104,6 +104,7 @@ Run add_assess(CLI::App& app) {
                    {"thresholds_kpa", sc.assess.thresholds_kpa},
                    {"signal_thresholds", sc.assess.signal_thresholds},
                    {"significance_sigmas", sc.assess.significance_sigmas},
+                   {"hysteresis_sigmas", sc.assess.hysteresis_sigmas},
                    {"min_hotspot_area_mm2", sc.assess.min_hotspot_area_mm2},
                    {"glare_mask", sc.assess.glare.options.enabled},
                    {"glare_margin_px", sc.assess.glare.options.margin_px},

@@ -360,6 +360,9 @@ void AssessSection::bind(SceneFields& f) {
             "Without a calibration: hotspot thresholds on the blanching signal y = ln(G/G0) (default: --significance-sigmas times the noise)");
   f.key("significance_sigmas", significance_sigmas, "--significance-sigmas",
         "Without a calibration and --signal-threshold: significant blanching is this many noise sigmas above the reference");
+  f.key("hysteresis_sigmas", hysteresis_sigmas, "--hysteresis-sigmas",
+        "With a calibration: a texel below detection but connected to a detected one keeps its pressure where its signal "
+        "is at least this many of its sigmas (the places' tails; at the detection gate or above: off)");
   f.numbers("reference_uv_mm", reference_uv_mm, 2, "--reference-uv-mm",
             "Centre u,v (chart mm) of an unpressed reference disk (default: automatic)");
   f.key("reference_radius_mm", reference_radius_mm, "--reference-radius-mm", "Radius of the reference disk, mm");
@@ -405,6 +408,8 @@ void AssessSection::validate() const {
     if (!(std::isfinite(t) && t > 0 && t < 5)) rule_broken("signal_thresholds", t, "positive values of the signal ln(G/G0) below 5");
   if (!(std::isfinite(significance_sigmas) && significance_sigmas >= 1 && significance_sigmas <= 100))
     rule_broken("significance_sigmas", significance_sigmas, "a number of noise sigmas in [1, 100]");
+  if (!(std::isfinite(hysteresis_sigmas) && hysteresis_sigmas >= 1 && hysteresis_sigmas <= 100))
+    rule_broken("hysteresis_sigmas", hysteresis_sigmas, "a number of noise sigmas in [1, 100]");
   if (!(std::isfinite(min_hotspot_area_mm2) && min_hotspot_area_mm2 > 0))
     rule_broken("min_hotspot_area_mm2", min_hotspot_area_mm2, "a positive area in mm²");
 }

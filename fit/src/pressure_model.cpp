@@ -160,13 +160,13 @@ PressureEstimate PressureCalibration::invert(double y, double sigma_y) const {
 
 void PressureCalibration::invert(std::span<const float> signal, std::span<const float> sigma_y,
                                  std::span<float> pressure_kpa, std::span<float> sigma_kpa,
-                                 std::span<std::uint8_t> status) const {
+                                 std::span<std::uint8_t> status, double detection_limit) const {
   const std::size_t n = signal.size();
   if (pressure_kpa.size() != n || sigma_kpa.size() != n || status.size() != n || (!sigma_y.empty() && sigma_y.size() != n))
     throw std::invalid_argument("PressureCalibration::invert: output spans (and sigma_y when given) need signal.size() elements");
   // Everything that does not depend on the element is hoisted; the loop is the
   // closed form of invert_logistic / the linear inverse.
-  const double y_det = detection_signal(), y_sat = saturation_signal();
+  const double y_det = std::isnan(detection_limit) ? detection_signal() : detection_limit, y_sat = saturation_signal();
   const float sat_p = static_cast<float>(invert(std::numeric_limits<double>::max()).pressure_kpa);
   const bool logistic_model = model == PressureModelKind::logistic;
   const double w = logistic.width_kpa, inv_ymax = 1.0 / logistic.y_max, p50 = logistic.p50_kpa;

@@ -334,15 +334,59 @@ TEST(AssessmentStages, LinearCalibrationInvertsTheSharpenedSignalAndGatesByTheTe
   EXPECT_NEAR(a.mean_kpa, (0 + 5 + 10 + 30) / 4.0, 1e-4);
   EXPECT_TRUE(contains(a.warnings, "25.00 % of the seen skin is beyond the calibration's range"));
 
-  // A capture with its own noise: 0.06 < 5 × 0.015 is below detection; 0.11 ≥ 0.075 stays.
+  // A capture with its own noise: 0.06 < 5 × 0.015 is below detection; 0.11 ≥ 0.075 stays (hysteresis off).
   Assessment lossy;
   lossy.signal = a.signal, lossy.blur_effect = a.blur_effect, lossy.signal_sigma = a.signal_sigma;
-  calibrated_pressure(cal, true, o, lossy);
+  AssessmentOptions gate_only;
+  gate_only.hysteresis_sigmas = gate_only.signal_threshold_sigmas;
+  calibrated_pressure(cal, true, gate_only, lossy);
   EXPECT_EQ(static_cast<PressureStatus>(lossy.pressure_status[1]), PressureStatus::below_detection);
   EXPECT_EQ(lossy.pressure.value[1], 0.f);
   EXPECT_TRUE(std::isnan(lossy.pressure_sigma.value[1]));
   EXPECT_EQ(static_cast<PressureStatus>(lossy.pressure_status[2]), PressureStatus::ok);
   EXPECT_NEAR(lossy.below_detection_fraction, 0.5, 1e-12);
+}
+
+TEST(AssessmentStages, HysteresisKeepsAPlacesTailButNotIsolatedNoise) {
+  // y = 0.01·p, a capture with its own noise (σ_y 0.01, gate 5 σ = 0.05, hysteresis 2 σ = 0.02). One row:
+  // a place (0.08 detected) with a tail 0.04, 0.03 beside it, then 0.01 (1 σ: not kept), and apart from
+  // it, beyond a texel of 0, an isolated 0.04 (4 σ but connected to nothing detected).
+  PressureCalibration cal;
+  cal.model = PressureModelKind::linear;
+  cal.intercept = 0, cal.slope_per_kpa = 0.01, cal.noise_sigma = 0.001;
+  cal.p_min_kpa = 0, cal.p_max_kpa = 30;
+  cal.person = "p";
+  const ChartGrid g = grid(8, 1, 0.1);
+  Assessment a;
+  a.signal.y = {g, {0.03f, 0.04f, 0.08f, 0.04f, 0.01f, 0.03f, 0.0f, 0.04f}};
+  a.signal.sigma_y = constant(g, 0.01f);
+  a.signal_sigma = constant(g, 0.01f);
+  AssessmentOptions o;
+  ASSERT_DOUBLE_EQ(o.hysteresis_sigmas, 2.0);
+  // A detected piece grows only when it is as large as the smallest place: one texel (0.01 mm²) does not
+  // under the default 0.05 mm².
+  Assessment speck;
+  speck.signal = a.signal, speck.signal_sigma = a.signal_sigma;
+  calibrated_pressure(cal, true, o, speck);
+  for (int k = 0; k < 8; ++k) EXPECT_EQ(static_cast<PressureStatus>(speck.pressure_status[k]) == PressureStatus::ok, k == 2) << k;
+  o.min_hotspot_area_mm2 = 0.01;
+  calibrated_pressure(cal, true, o, a);
+  auto status = [&](int k) { return static_cast<PressureStatus>(a.pressure_status[k]); };
+  for (int k : {0, 1, 2, 3}) {
+    EXPECT_EQ(status(k), PressureStatus::ok) << k;
+    EXPECT_NEAR(a.pressure.value[k], a.signal.y.value[k] / 0.01, 1e-4) << k;  // the inverse, not 0
+    EXPECT_NEAR(a.pressure_sigma.value[k], 1.0, 1e-5) << k;                   // σ 0.01 / 0.01
+  }
+  for (int k : {4, 5, 6, 7}) {  // 1 σ; beyond it; 0; isolated
+    EXPECT_EQ(status(k), PressureStatus::below_detection) << k;
+    EXPECT_EQ(a.pressure.value[k], 0.f) << k;
+  }
+  // At the gate the hysteresis is off: only the detected texel keeps its pressure.
+  Assessment off;
+  off.signal = a.signal, off.signal_sigma = a.signal_sigma;
+  o.hysteresis_sigmas = o.signal_threshold_sigmas;
+  calibrated_pressure(cal, true, o, off);
+  for (int k = 0; k < 8; ++k) EXPECT_EQ(static_cast<PressureStatus>(off.pressure_status[k]) == PressureStatus::ok, k == 2) << k;
 }
 
 }  // namespace

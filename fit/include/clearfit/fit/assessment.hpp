@@ -48,6 +48,11 @@ struct AssessmentOptions {
   /// noise (default 5 σ) unless given as values.
   std::vector<double> signal_thresholds;
   double signal_threshold_sigmas = 5.0;
+  /// With a calibration: a texel below detection keeps its estimate where its signal is at least this many
+  /// of its own σ and it is connected, through such texels, to a detected one (hysteresis; the detection
+  /// gate itself is the calibration's, or signal_threshold_sigmas with a capture's own noise). At the gate
+  /// or above: off.
+  double hysteresis_sigmas = 2.0;
   double min_hotspot_area_mm2 = 0.05;
   TimeSeriesOptions timeseries;          ///< the worn phase over time (timeseries.hpp)
   double max_saturated_fraction = 0.02;  ///< more saturated pixels than this in a window is an error

@@ -135,8 +135,10 @@ struct PressureCalibration {
   /// sigma_y is empty (noise_sigma everywhere) or one value per element.
   /// pressure_kpa / sigma_kpa follow PressureEstimate (bounds are not stored:
   /// saturated elements hold their lower bound, below-detection ones NaN).
+  /// detection_limit: the signal below which an element is below detection (NaN: detection_signal()).
   void invert(std::span<const float> signal, std::span<const float> sigma_y, std::span<float> pressure_kpa,
-              std::span<float> sigma_kpa, std::span<std::uint8_t> status) const;
+              std::span<float> sigma_kpa, std::span<std::uint8_t> status,
+              double detection_limit = std::numeric_limits<double>::quiet_NaN()) const;
   /// Standard errors: square roots of the covariance diagonal.
   Eigen::Vector3d standard_errors() const;
 };
