@@ -233,20 +233,19 @@ void extend_detection(const PressureCalibration& calibration, const ChartField& 
                       Assessment& a) {
   const ChartGrid& g = a.signal.y.grid;
   const auto ok = static_cast<std::uint8_t>(PressureStatus::ok), below = static_cast<std::uint8_t>(PressureStatus::below_detection);
-  cv::Mat1b mask(g.height, g.width, std::uint8_t{0});
+  // mask: the detected texels and the candidates; detected_mask: the detected ones alone (their pieces' areas).
+  cv::Mat1b mask(g.height, g.width, std::uint8_t{0}), detected_mask(g.height, g.width, std::uint8_t{0});
   std::vector<std::size_t> candidates;
   for (std::size_t k = 0; k < g.size(); ++k) {
     const float y = a.signal.y.value[k], sy = a.signal.sigma_y.value[k];
+    const bool detected = a.pressure_status[k] == ok;
     const bool candidate = a.pressure_status[k] == below && std::isfinite(sy) && y >= sigmas * sy;
-    if (a.pressure_status[k] == ok || candidate) mask(static_cast<int>(k / g.width), static_cast<int>(k % g.width)) = 1;
+    const int row = static_cast<int>(k / g.width), col = static_cast<int>(k % g.width);
+    mask(row, col) = detected || candidate, detected_mask(row, col) = detected;
     if (candidate) candidates.push_back(k);
   }
   if (candidates.empty()) return;
   auto at = [&](const cv::Mat1i& l, std::size_t k) { return static_cast<std::size_t>(l(static_cast<int>(k / g.width), static_cast<int>(k % g.width))); };
-  // The detected pieces and their areas.
-  cv::Mat1b detected_mask(g.height, g.width, std::uint8_t{0});
-  for (std::size_t k = 0; k < g.size(); ++k)
-    if (a.pressure_status[k] == ok) detected_mask(static_cast<int>(k / g.width), static_cast<int>(k % g.width)) = 1;
   cv::Mat1i pieces;
   std::vector<long long> piece_texels(static_cast<std::size_t>(cv::connectedComponents(detected_mask, pieces, 8, CV_32S)), 0);
   for (std::size_t k = 0; k < g.size(); ++k)

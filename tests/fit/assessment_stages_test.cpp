@@ -299,13 +299,19 @@ TEST(AssessmentStages, SignalSigmaIsNoiseBlurIntrinsicsAndGradientTimesPositionI
 
 // ---- Pressure through the calibration ----
 
-TEST(AssessmentStages, LinearCalibrationInvertsTheSharpenedSignalAndGatesByTheTexelsOwnNoise) {
-  // y = 0.01·p (kPa), calibrated over 0..30 kPa, noise 0.001: detection at 0.003, saturation at 0.3.
+/// y = 0.01·p (kPa), calibrated over 0..30 kPa, noise 0.001.
+PressureCalibration linear_calibration() {
   PressureCalibration cal;
   cal.model = PressureModelKind::linear;
   cal.intercept = 0, cal.slope_per_kpa = 0.01, cal.noise_sigma = 0.001;
   cal.p_min_kpa = 0, cal.p_max_kpa = 30;
   cal.person = "p";
+  return cal;
+}
+
+TEST(AssessmentStages, LinearCalibrationInvertsTheSharpenedSignalAndGatesByTheTexelsOwnNoise) {
+  // y = 0.01·p (kPa), calibrated over 0..30 kPa, noise 0.001: detection at 0.003, saturation at 0.3.
+  const PressureCalibration cal = linear_calibration();
   const ChartGrid g = grid(5, 1, 0.1);
   Assessment a;
   a.signal.y = {g, {0.002f, 0.06f, 0.11f, 0.5f, kNaN}};
@@ -351,11 +357,7 @@ TEST(AssessmentStages, HysteresisKeepsAPlacesTailButNotIsolatedNoise) {
   // y = 0.01·p, a capture with its own noise (σ_y 0.01, gate 5 σ = 0.05, hysteresis 2 σ = 0.02). One row:
   // a place (0.08 detected) with a tail 0.04, 0.03 beside it, then 0.01 (1 σ: not kept), and apart from
   // it, beyond a texel of 0, an isolated 0.04 (4 σ but connected to nothing detected).
-  PressureCalibration cal;
-  cal.model = PressureModelKind::linear;
-  cal.intercept = 0, cal.slope_per_kpa = 0.01, cal.noise_sigma = 0.001;
-  cal.p_min_kpa = 0, cal.p_max_kpa = 30;
-  cal.person = "p";
+  const PressureCalibration cal = linear_calibration();
   const ChartGrid g = grid(8, 1, 0.1);
   Assessment a;
   a.signal.y = {g, {0.03f, 0.04f, 0.08f, 0.04f, 0.01f, 0.03f, 0.0f, 0.04f}};
