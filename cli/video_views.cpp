@@ -230,7 +230,7 @@ nlohmann::json VideoViews::json() const {
           {"codec", info.codec},
           {"lossy", info.lossy},
           {"size", {info.width, info.height}},
-          {"fps", info.fps},
+          {"fps", info.fps > 0 ? nlohmann::json(info.fps) : nlohmann::json(nullptr)},
           {"frames_read", frames_read},
           {"used", s.count(ViewVerdict::used)},
           {"dropped", dropped},

@@ -35,7 +35,7 @@ json phase_json(const PhaseReport& p) {
   return {{"source", p.source},
           {"frames_total", p.frames_total},
           {"frames_used", {p.window.first, p.window.first + p.window.count - 1}},
-          {"fps", num(p.fps)},
+          {"fps", p.fps > 0 ? num(p.fps) : json(nullptr)},  // null: no frame rate (a folder of images)
           {"motion_px_max", num(p.motion_px_max)},
           {"jitter_px_rms", num(p.jitter_px_rms)},
           {"rotation_deg_max", num(p.rotation_deg_max)},

@@ -142,3 +142,20 @@ TEST_F(Simulate, RealisticPresetResolvesAndSceneKeysOverride) {
   expect_input_error({"simulate", "scene.yaml", "--out", "sim4"}, {"line 7", "simulation.preset", "cinematic", "realistic"});
   EXPECT_FALSE(fs::exists(work() / "sim4"));
 }
+
+// Captures read from folders of images have no frame rate: report.json says null (not 0, which reads as a
+// rate of zero frames a second), as report.html shows "— (images)".
+TEST_F(Simulate, ImageFolderCapturesHaveNoFrameRateInTheReport) {
+  write_text(work() / "scene.yaml", slab_scene(", motion_compensation: false", "", "  motion: {step_px: 0}\n"));
+  RunResult r = run({"simulate", "scene.yaml", "--out", "sim", "--no-cache", "--no-presses", "--quiet"});
+  ASSERT_EQ(r.exit_code, 0) << r;
+  ASSERT_TRUE(fs::is_directory(work() / "sim" / "baseline")) << "the slab's simulation writes png folders";
+  r = run({"assess", "scene.yaml", "--no-cache", "--no-html", "--quiet"});
+  ASSERT_EQ(r.exit_code, 0) << r;
+  const auto report = nlohmann::json::parse(read_text(work() / "out" / "report.json"));
+  for (const char* phase : {"baseline", "worn"}) {
+    const auto& c = report.at("captures").at(phase);
+    ASSERT_TRUE(c.contains("fps")) << phase;
+    EXPECT_TRUE(c["fps"].is_null()) << phase << ": " << c.dump();
+  }
+}
