@@ -406,6 +406,7 @@ void pressure_and_hotspots(const AssessmentScene& scene, const std::optional<Pre
     const std::vector<std::uint8_t> saturated = calibrated_pressure(*calibration, spatial_noise, o, a);
     const ChartField& search = a.pressure;
     a.thresholds = o.thresholds_kpa;
+    warn_thresholds_below_detection(a.thresholds, a.detection_limit, a.warnings);
     ho.thresholds = a.thresholds;
     a.hotspots = find_hotspots(search, &a.pressure_sigma, &saturated, a.raster, ho, &a.hotspot_labels, scene.mesh);
   } else {

@@ -311,6 +311,7 @@ std::vector<std::uint8_t> calibrated_pressure(const PressureCalibration& calibra
       a.peak_kpa = std::max(a.peak_kpa, static_cast<double>(a.pressure.value[k]));
     }
   }
+  a.detection_limit = detection_limit(calibration, a.signal.noise_sigma, spatial_noise, o);
   a.below_detection_fraction = seen ? static_cast<double>(below) / seen : 0;
   a.saturated_fraction = seen ? static_cast<double>(sat) / seen : 0;
   a.mean_kpa = est ? sum / est : 0;
@@ -318,6 +319,58 @@ std::vector<std::uint8_t> calibrated_pressure(const PressureCalibration& calibra
     a.warnings.push_back(fixed_digits(100 * a.saturated_fraction, 2) + " % of the seen skin is beyond the calibration's range (saturated): "
                          "the pressure there is at least the value shown");
   return saturated;
+}
+
+namespace {
+/// The calibration's inverse at signal y with no detection gate (its lower bound when y is beyond saturation).
+double pressure_at(const PressureCalibration& calibration, double y) {
+  PressureCalibration ungated = calibration;
+  ungated.noise_sigma = 0;
+  const PressureEstimate e = ungated.invert(y);
+  return e.status == PressureStatus::ok ? e.pressure_kpa : e.status == PressureStatus::saturated ? e.bound_kpa : std::numeric_limits<double>::quiet_NaN();
+}
+}  // namespace
+
+DetectionLimit detection_limit(const PressureCalibration& calibration, double noise_sigma, bool spatial_noise, const AssessmentOptions& o) {
+  DetectionLimit d;
+  d.signal = calibration.detection_signal();
+  d.sigmas = PressureCalibration::detection_sigmas;
+  d.noise_sigma = calibration.noise_sigma;
+  if (spatial_noise && o.signal_threshold_sigmas * noise_sigma > d.signal) {
+    d.signal = o.signal_threshold_sigmas * noise_sigma;
+    d.sigmas = o.signal_threshold_sigmas;
+    d.noise_sigma = noise_sigma;
+    d.capture_noise = true;
+  }
+  d.kpa = pressure_at(calibration, d.signal);
+  if (o.hysteresis_sigmas * noise_sigma < d.signal) d.tail_kpa = pressure_at(calibration, o.hysteresis_sigmas * noise_sigma);
+  return d;
+}
+
+void warn_thresholds_below_detection(const std::vector<double>& thresholds_kpa, const DetectionLimit& limit,
+                                     std::vector<std::string>& warnings) {
+  if (!std::isfinite(limit.kpa)) return;
+  const std::string noise = limit.capture_noise ? "this capture's noise (median σ " + fixed_digits(limit.noise_sigma, 4) + ")"
+                                                : "the calibration presses' noise (σ " + fixed_digits(limit.noise_sigma, 4) + ")";
+  const std::string gate = "the detection limit of " + fixed_digits(limit.kpa, 1) + " kPa (the pressure whose signal is " +
+                           fixed_digits(limit.sigmas, 0) + " σ of " + noise + ")";
+  const bool tail = std::isfinite(limit.tail_kpa) && limit.tail_kpa < limit.kpa;
+  const double floor_kpa = tail ? limit.tail_kpa : limit.kpa;
+  for (double t : thresholds_kpa) {
+    const std::string at = significant_digits(t, 4) + " kPa";
+    if (!(t < limit.kpa)) continue;
+    if (t < floor_kpa)
+      warnings.push_back("hotspot threshold " + at + " is below " + gate +
+                         (tail ? ", and below the " + fixed_digits(limit.tail_kpa, 1) + " kPa down to which a detected place's tail is read" : "") +
+                         ": the outline at " + at + " is where the signal stops being significant, not where the pressure crosses " + at +
+                         ", so the areas at that threshold are underestimated (and their σ does not cover it); give thresholds of at least " +
+                         fixed_digits(floor_kpa, 1) + " kPa, or film with less noise (more frames, lossless video)");
+    else
+      warnings.push_back("hotspot threshold " + at + " is below " + gate + ": a place is found only where its pressure reaches " +
+                         fixed_digits(limit.kpa, 1) + " kPa, so one that stays between " + at + " and " + fixed_digits(limit.kpa, 1) +
+                         " kPa is not reported; a place found is read down to about " + fixed_digits(limit.tail_kpa, 1) +
+                         " kPa (its tail), so its area at " + at + " is not underestimated by the limit");
+  }
 }
 
 }  // namespace clearfit

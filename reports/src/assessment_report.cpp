@@ -343,6 +343,8 @@ json pressure_json(const Assessment& a, const AssessmentContext& c) {
           {"peak_kpa", num(a.peak_kpa)},
           {"mean_kpa", num(a.mean_kpa)},
           {"below_detection_fraction", num(a.below_detection_fraction)},
+          {"detection_limit_kpa", num(a.detection_limit.kpa)},
+          {"detection_limit_signal", num(a.detection_limit.signal)},
           {"saturated_fraction", num(a.saturated_fraction)}};
 }
 

@@ -18,6 +18,7 @@
 #include <cmath>
 #include <cstring>
 #include <map>
+#include <sstream>
 
 namespace clearfit::cli_test {
 namespace {
@@ -152,6 +153,22 @@ TEST_F(AssessCli, FindsTheSimulatedHotspotsWhereTheTruthPutsThem) {
   }
   // Provenance: every input hashed.
   for (const auto& in : report["inputs"]) EXPECT_EQ(in["sha256"].get<std::string>().size(), 64u) << in;
+  // The detection limit: the calibration's logistic inverted (here, from calibration.json) at the gate, the higher of
+  // its presses' 3 σ and 5 σ of this held capture's median noise; each threshold below it is named in the warnings.
+  const auto cal = nlohmann::json::parse(read_text(captures() / "calibration.json"));
+  const double y_max = cal["parameters"]["y_max"], p50 = cal["parameters"]["p50_kpa"], w = cal["parameters"]["width_kpa"];
+  const double gate = std::max(3 * cal["noise_sigma"].get<double>(), 5 * report["signal"]["noise_sigma"].get<double>());
+  const double s0 = 1 / (1 + std::exp(p50 / w)), s = s0 + (1 - s0) * gate / y_max, limit = p50 + w * std::log(s / (1 - s));
+  EXPECT_NEAR(report["pressure"]["detection_limit_kpa"].get<double>(), limit, 1e-6 * limit);
+  int below = 0;
+  for (const auto& t : report["thresholds_kpa"]) {
+    std::ostringstream name;
+    name << "hotspot threshold " << t.get<double>() << " kPa is below the detection limit of ";
+    const bool named = report["warnings"].dump().find(name.str()) != std::string::npos;
+    EXPECT_EQ(named, t.get<double>() < limit) << name.str() << limit << " kPa\n" << report["warnings"].dump(1);
+    below += t.get<double>() < limit;
+  }
+  std::printf("detection limit %.2f kPa; %d of the thresholds below it\n", limit, below);
 }
 
 // The pose's σ end to end: the same captures assessed with the camera's pose from a pose file, once

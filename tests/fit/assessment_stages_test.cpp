@@ -391,5 +391,62 @@ TEST(AssessmentStages, HysteresisKeepsAPlacesTailButNotIsolatedNoise) {
   for (int k = 0; k < 8; ++k) EXPECT_EQ(static_cast<PressureStatus>(off.pressure_status[k]) == PressureStatus::ok, k == 2) << k;
 }
 
+TEST(AssessmentStages, ThresholdsBelowTheDetectionLimitAreNamedWithTheLimit) {
+  // y = 0.01·p, the calibration presses' noise 0.001 (its gate 3 σ = 0.003, 0.3 kPa). A capture with its own
+  // noise of median σ_y 0.01: gate 5 σ = 0.05, 5 kPa; the hysteresis's 2 σ = 0.02, 2 kPa.
+  const PressureCalibration cal = linear_calibration();
+  AssessmentOptions o;
+  const DetectionLimit own = detection_limit(cal, 0.01, true, o);
+  EXPECT_TRUE(own.capture_noise);
+  EXPECT_NEAR(own.signal, 0.05, 1e-12);
+  EXPECT_NEAR(own.kpa, 5.0, 1e-4);
+  EXPECT_NEAR(own.tail_kpa, 2.0, 1e-4);
+  // Without a noise of its own the gate is the calibration's; the hysteresis's 2 σ_y (0.004) is above it: off.
+  const DetectionLimit presses = detection_limit(cal, 0.002, false, o);
+  EXPECT_FALSE(presses.capture_noise);
+  EXPECT_NEAR(presses.kpa, 0.3, 1e-4);
+  EXPECT_TRUE(std::isnan(presses.tail_kpa));
+  // A gate beyond the calibration's saturation (0.3): its top, 30 kPa.
+  EXPECT_NEAR(detection_limit(cal, 0.1, true, o).kpa, 30.0, 1e-4);
+
+  // The limit is where calibrated_pressure's gate is (hysteresis off): a texel just above it is an estimate, just
+  // below it is below detection.
+  const ChartGrid g = grid(3, 1, 0.1);
+  Assessment a;
+  a.signal.y = {g, {0.0499f, 0.0501f, 0.2f}};
+  a.signal.sigma_y = constant(g, 0.01f);
+  a.signal.noise_sigma = 0.01;
+  a.signal_sigma = constant(g, 0.01f);
+  o.hysteresis_sigmas = o.signal_threshold_sigmas;
+  calibrated_pressure(cal, true, o, a);
+  EXPECT_EQ(static_cast<PressureStatus>(a.pressure_status[0]), PressureStatus::below_detection);
+  EXPECT_EQ(static_cast<PressureStatus>(a.pressure_status[1]), PressureStatus::ok);
+  EXPECT_NEAR(a.detection_limit.kpa, 5.0, 1e-4);
+
+  // 4.3 kPa is below the 5 kPa limit but above the 2 kPa tail: places under 5 kPa are not found, the areas of those
+  // found hold. 1.5 kPa is below the tail too: its areas are underestimated. 5.5 is above the limit: no warning.
+  std::vector<std::string> warnings;
+  warn_thresholds_below_detection({1.5, 4.3, 5.5}, own, warnings);
+  ASSERT_EQ(warnings.size(), 2u);
+  for (const char* text : {"hotspot threshold 1.5 kPa is below the detection limit of 5.0 kPa (the pressure whose signal is 5 σ of this "
+                           "capture's noise (median σ 0.0100)), and below the 2.0 kPa down to which a detected place's tail is read",
+                           "so the areas at that threshold are underestimated", "give thresholds of at least 2.0 kPa"})
+    EXPECT_NE(warnings[0].find(text), std::string::npos) << text << "\n" << warnings[0];
+  for (const char* text : {"hotspot threshold 4.3 kPa is below the detection limit of 5.0 kPa", "stays between 4.3 kPa and 5.0 kPa is not reported",
+                           "read down to about 2.0 kPa"})
+    EXPECT_NE(warnings[1].find(text), std::string::npos) << text << "\n" << warnings[1];
+  EXPECT_EQ(warnings[1].find("areas at that threshold are underestimated"), std::string::npos) << warnings[1];
+  // Without a tail (the hysteresis off) every threshold below the limit has its areas underestimated.
+  warnings.clear();
+  warn_thresholds_below_detection({0.2, 0.3, 4.3}, presses, warnings);
+  ASSERT_EQ(warnings.size(), 1u);
+  EXPECT_TRUE(contains(warnings, "hotspot threshold 0.2 kPa is below the detection limit of 0.3 kPa (the pressure whose signal is 3 σ of "
+                                 "the calibration presses' noise (σ 0.0010)): the outline at 0.2 kPa")) << warnings[0];
+  EXPECT_TRUE(contains(warnings, "areas at that threshold are underestimated"));
+  warnings.clear();
+  warn_thresholds_below_detection({4.3}, DetectionLimit{}, warnings);  // uncalibrated: no limit
+  EXPECT_TRUE(warnings.empty());
+}
+
 }  // namespace
 }  // namespace clearfit

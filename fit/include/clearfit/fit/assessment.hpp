@@ -120,6 +120,18 @@ struct ProjectionSigmaOnContact {
   double position_mm = 0;          ///< the largest skin position σ over the seen texels (mm, per axis)
 };
 
+/// Where a calibrated assessment stops seeing pressure: the detection gate on the signal for the median texel's noise,
+/// and the pressure there (detection_limit in assessment_stages.hpp). Below it a texel reads 0 kPa unless it is a
+/// detected place's tail (hysteresis, down to tail_kpa).
+struct DetectionLimit {
+  double signal = std::numeric_limits<double>::quiet_NaN();  ///< the gate's signal y
+  double kpa = std::numeric_limits<double>::quiet_NaN();     ///< the pressure whose signal is at the gate
+  double sigmas = 0;                                         ///< the gate in σ of the noise below
+  double noise_sigma = 0;                                    ///< the noise the gate counts in: the capture's median σ_y, or the calibration presses'
+  bool capture_noise = false;                                ///< the gate is the capture's own noise's (lossy, or a baseline with its own geometry)
+  double tail_kpa = std::numeric_limits<double>::quiet_NaN(); ///< the pressure at hysteresis_sigmas of the capture's noise (NaN: the hysteresis is off)
+};
+
 struct Assessment {
   PhaseReport baseline, worn;
   BaselineGeometryReport baseline_geometry;
@@ -134,6 +146,7 @@ struct Assessment {
   std::vector<std::uint8_t> pressure_status; ///< PressureStatus per texel (invalid where unseen)
   double below_detection_fraction = 0, saturated_fraction = 0;  ///< of seen texels
   double peak_kpa = 0, mean_kpa = 0;         ///< over every seen texel: below detection as 0, saturated at its lower bound
+  DetectionLimit detection_limit;            ///< the capture's detection limit in kPa (assessment_stages.hpp); NaN uncalibrated
   std::vector<Hotspot> hotspots;
   std::vector<double> thresholds;            ///< the thresholds used, in the field's unit
   std::vector<int> hotspot_labels;           ///< place id per texel (0 = none), for outlines

@@ -90,7 +90,25 @@ ChartField signal_sigma(const BlanchingSignal& signal, const ChartField& positio
 /// seen texel, below detection as 0 kPa (σ NaN), saturated at its lower bound. With `spatial_noise` (a lossy capture,
 /// or phases with their own geometry) a texel below o.signal_threshold_sigmas of its own σ_y is below detection too.
 /// Reads a.signal, a.blur_effect (may be empty) and a.signal_sigma; returns 1 per saturated texel.
+/// Also fills a.detection_limit (detection_limit below, at a.signal.noise_sigma).
 std::vector<std::uint8_t> calibrated_pressure(const PressureCalibration& calibration, bool spatial_noise, const AssessmentOptions& o,
                                               Assessment& a);
+
+/// The detection limit calibrated_pressure applies, for a texel of σ_y = `noise_sigma` (the capture's median): the
+/// gate is the calibration's detection_signal (detection_sigmas of its presses' noise) and, with `spatial_noise`, at
+/// least o.signal_threshold_sigmas · noise_sigma; kpa is the calibration's inverse there (its top when the gate is
+/// beyond saturation). tail_kpa: the inverse at o.hysteresis_sigmas · noise_sigma, where a detected place's tail
+/// ends (NaN when that is not under the gate: the hysteresis is off).
+DetectionLimit detection_limit(const PressureCalibration& calibration, double noise_sigma, bool spatial_noise, const AssessmentOptions& o);
+
+/// One warning per hotspot threshold (kPa) below the detection limit, naming the threshold and the limit in kPa and
+/// what it counts in. Below the limit and below the tail's (tail_kpa; or with the hysteresis off): a place's outline
+/// there is where the signal stops being significant, not where the pressure crosses the threshold, so its areas are
+/// underestimated (and their σ does not model it; SigmaCoverage's captures at 3 kPa, under a 3.4 kPa tail: 9-19 %
+/// small, z down to -20). Between the tail's and the limit: a place is found only where it reaches the limit, but the
+/// areas of those found hold (at 4.3 kPa under a 5.3-5.6 kPa limit: -8 % and +1 %, within their σ). Nothing when the
+/// limit is NaN.
+void warn_thresholds_below_detection(const std::vector<double>& thresholds_kpa, const DetectionLimit& limit,
+                                     std::vector<std::string>& warnings);
 
 }  // namespace clearfit
