@@ -341,9 +341,9 @@ CameraModel read_cameramodel(const std::filesystem::path& path) {
   return model;
 }
 
-std::string cameramodel_text(const CameraModel& model) {
+std::string cameramodel_text(const CameraModel& model, const std::filesystem::path& path) {
   if (auto p = find_problem(model))
-    throw std::invalid_argument("write_cameramodel: key '" + p->key + "' " + p->problem);
+    throw std::invalid_argument("write_cameramodel(" + path.string() + "): key '" + p->key + "' " + p->problem);
   const auto rt = model.cam_from_part.to_rt();
   std::string s;
   s += "# mrcal .cameramodel written by clearfit\n{\n";
@@ -358,13 +358,7 @@ std::string cameramodel_text(const CameraModel& model) {
 }
 
 void write_cameramodel(const CameraModel& model, const std::filesystem::path& path) {
-  std::string text;
-  try {
-    text = cameramodel_text(model);
-  } catch (const std::invalid_argument& e) {
-    throw std::invalid_argument("write_cameramodel(" + path.string() + "): " + std::string(e.what()).substr(std::string("write_cameramodel: ").size()));
-  }
-  write_file_atomically(path, text);
+  write_file_atomically(path, cameramodel_text(model, path));
 }
 
 }  // namespace clearfit

@@ -108,7 +108,7 @@ void write_cameramodel(const CameraModel& model, const ProjectionUncertainty& u,
   if (u.cells_x < 1 || u.cells_y < 1 || u.px.size() != static_cast<std::size_t>(u.cells_x) * u.cells_y || !(u.distance_mm > 0) ||
       std::any_of(u.px.begin(), u.px.end(), [](double v) { return !(v >= 0) || !std::isfinite(v); }))
     throw std::invalid_argument("write_cameramodel(" + path.string() + "): the projection uncertainty's cells, distance or values are invalid");
-  std::string text = cameramodel_text(model);
+  std::string text = cameramodel_text(model, path);
   std::string keys = "\n    # clearfit: projection uncertainty (mrcal's method), 1-sigma px in the worst direction at the centres\n"
                      "    # of a grid of cells over the imager, row-major, for points at the distance given\n";
   keys += "    '" + std::string(kCells) + "': [ " + std::to_string(u.cells_x) + ", " + std::to_string(u.cells_y) + ", ],\n";

@@ -255,8 +255,19 @@ TEST(CameraModel, ValidateInMemoryModels) {
   m = pinhole();
   m.height = -1;
   EXPECT_THROW(m.validate(), InputError);
-  EXPECT_THROW(write_cameramodel(m, "never_written.cameramodel"), std::invalid_argument);
-  EXPECT_FALSE(fs::exists("never_written.cameramodel"));
+  // Both writers refuse it naming the file, the key and the defect, and write nothing.
+  const ProjectionUncertainty u{1, 1, 100, {0.1}};
+  for (const bool with_uncertainty : {false, true}) {
+    SCOPED_TRACE(with_uncertainty ? "with the projection uncertainty" : "the model alone");
+    try {
+      with_uncertainty ? write_cameramodel(m, u, "never_written.cameramodel") : write_cameramodel(m, "never_written.cameramodel");
+      ADD_FAILURE() << "written";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_EQ(std::string(e.what()), "write_cameramodel(never_written.cameramodel): key 'imagersize' must be two positive integers, found " +
+                                           std::to_string(m.width) + " x -1");
+    }
+    EXPECT_FALSE(fs::exists("never_written.cameramodel"));
+  }
 }
 
 TEST(CameraModel, IntrinsicsHashSeesIntrinsicsAndSizeNotPose) {

@@ -137,6 +137,10 @@ std::vector<Case> map_cases(const std::string& camera_text) {
     t.replace(open, close - open + 1, value);
     return t;
   };
+  auto cam_plus = [&](const std::string& keys) {  // keys added before the closing brace
+    std::string t = camera_text;
+    return t.insert(t.rfind('}'), keys + "\n");
+  };
   return {
       // ---- map: options, camera, pose
       {"index of refraction", "--ior 0", {}, map_args({"--ior", "0"}), {"--ior", "from 1 to 3"}},
@@ -162,6 +166,11 @@ std::vector<Case> map_cases(const std::string& camera_text) {
        {"f.cameramodel", "intrinsics", "needs 4"}},
       {"camera", "unknown lens model", {{"l.cameramodel", cam_with("lensmodel", "'LENSMODEL_NOPE'")}}, map_args({"--camera", "l.cameramodel"}),
        {"l.cameramodel", "LENSMODEL_NOPE"}},
+      {"camera", "projection uncertainty without its cells", {{"u.cameramodel", cam_plus("'clearfit_uncertainty_distance_mm': 60, 'clearfit_uncertainty_px': [0.1],")}},
+       map_args({"--camera", "u.cameramodel"}), {"u.cameramodel", "clearfit_uncertainty_cells", "is missing"}},
+      {"camera", "projection uncertainty of the wrong count", {{"v.cameramodel", cam_plus("'clearfit_uncertainty_cells': [1, 1], 'clearfit_uncertainty_distance_mm': 60,"
+                                                                                         " 'clearfit_uncertainty_px': [0.1, 0.2],")}},
+       map_args({"--camera", "v.cameramodel"}), {"v.cameramodel", "clearfit_uncertainty_px", "holds 2 values; the cells (1 x 1) need 1"}},
       {"pose", "missing pose file", {}, map_args({"--pose", "nope.json"}), {"nope.json"}},
       {"pose", "pose not JSON", {{"p.json", "{ cam_from_part"}}, map_args({"--pose", "p.json"}), {"p.json", "not valid JSON"}},
       {"pose", "number 1e309 in the pose", {{"p.json", "{\"schema\": \"clearfit.pose/1\", \"units\": \"mm\", \"t\": 1e309}"}}, map_args({"--pose", "p.json"}),

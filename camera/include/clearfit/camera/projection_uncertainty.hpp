@@ -32,8 +32,9 @@ struct ProjectionUncertainty {
 /// file, line and key when only some are given, a count disagrees, or a value is negative or not finite.
 std::optional<ProjectionUncertainty> read_projection_uncertainty(const std::filesystem::path& cameramodel);
 
-/// The .cameramodel text write_cameramodel writes (defined in camera_model.cpp).
-std::string cameramodel_text(const CameraModel& model);
+/// The .cameramodel text write_cameramodel writes to `path` (defined in camera_model.cpp). Throws
+/// std::invalid_argument naming `path`, the key and its defect when the model is not valid.
+std::string cameramodel_text(const CameraModel& model, const std::filesystem::path& path);
 
 /// write_cameramodel with the uncertainty's keys. Throws std::invalid_argument when the
 /// uncertainty's counts disagree or a value is negative or not finite.
