@@ -409,10 +409,16 @@ FinalSolve staged_solve(detail::BoardProblem& problem, const std::vector<std::st
   auto solve = [&](const detail::Selection& s, const std::string& stage) {
     progress("solving: " + stage + " (" + problem.lensmodel + ")");
     detail::SolveOutput out = detail::optimize(problem, s);
+    std::string said;
+    for (const std::string& m : out.messages) said += (said.empty() ? "" : "; ") + m;
     if (!out.ok)
       throw InputError("", "calibration",
-                       "mrcal's solver failed at the stage '" + stage + "' (" + problem.lensmodel + ")",
+                       "mrcal's solver failed at the stage '" + stage + "' (" + problem.lensmodel + ")" +
+                           (said.empty() ? "" : ": mrcal says: " + said),
                        "check the board description and the corners; give --focal with a better guess");
+    if (!said.empty()) res.warnings.push_back("mrcal's solver, at the stage '" + stage + "': " + said);
+    if (out.outlier_passes > 0)  // the count is the result's (missing corners are mrcal's outliers too)
+      progress("outliers thrown out and solved again (" + std::to_string(out.outlier_passes) + (out.outlier_passes == 1 ? " pass)" : " passes)"));
     return out;
   };
   detail::Selection final_sel;

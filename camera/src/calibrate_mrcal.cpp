@@ -5,6 +5,7 @@
 // accurate enough for uncertainty propagation).
 #include "mrcal_api.hpp"
 #include "mrcal_optimize_api.hpp"
+#include "stderr_capture.hpp"
 
 #include <cstring>
 #include <stdexcept>
@@ -75,12 +76,19 @@ SolveOutput optimize(BoardProblem& p, const Selection& s) {
   Marshalled m = marshal(p, s);
   std::vector<double> x(static_cast<std::size_t>(m.n_measurements));
   const int nf = static_cast<int>(p.frames.size());
-  const mrcal_stats_t stats =
-      mrcal_optimize(nullptr, 0, x.data(), static_cast<int>(x.size() * sizeof(double)), p.intrinsics.data(),
-                     nullptr, m.frames.data(), nullptr, &m.warp, 1, 0, nf, 0, 0, m.observations.data(),
-                     nullptr, nf, 0, m.pool.data(), &m.lens.model, m.imagersize, m.selections, &m.constants,
-                     p.spacing_mm, p.grid_width, p.grid_height, false, false);
+  mrcal_stats_t stats{};
+  const std::string said = capture_stderr([&] {
+    stats = mrcal_optimize(nullptr, 0, x.data(), static_cast<int>(x.size() * sizeof(double)), p.intrinsics.data(),
+                           nullptr, m.frames.data(), nullptr, &m.warp, 1, 0, nf, 0, 0, m.observations.data(),
+                           nullptr, nf, 0, m.pool.data(), &m.lens.model, m.imagersize, m.selections, &m.constants,
+                           p.spacing_mm, p.grid_width, p.grid_height, false, false);
+  });
   SolveOutput out;
+  // mrcal's loop of outlier rejection says "Threw out some outliers (have a total of N now); going again"
+  // at each pass: its count is stats.Noutliers. Anything else it says is kept for the caller.
+  for (std::string& line : mrcal_messages(said))
+    if (line.rfind("Threw out some outliers", 0) == 0) ++out.outlier_passes;
+    else out.messages.push_back(std::move(line));
   out.ok = stats.rms_reproj_error__pixels >= 0;
   if (!out.ok) return out;
   out.rms_px = stats.rms_reproj_error__pixels;

@@ -1,6 +1,7 @@
 // .cameramodel files: reading (mrcal's parser), validation, writing (our own
 // full-precision writer), and the intrinsics hash.
 #include "mrcal_api.hpp"
+#include "stderr_capture.hpp"
 
 #include <clearfit/atomic_file.hpp>
 #include <clearfit/camera/projection_uncertainty.hpp>
@@ -11,6 +12,7 @@
 #include <cctype>
 #include <charconv>
 #include <cmath>
+#include <cstdio>
 #include <cstdlib>
 #include <cstring>
 #include <fstream>
@@ -169,8 +171,22 @@ int count_list_items(const std::string& list) {
   return n;
 }
 
-// Explains why mrcal could not read the file.
-InputError explain_parse_failure(const std::string& file, const std::string& text) {
+// mrcal's parse messages joined, each byte offset "at N" given as the line it falls on.
+std::string parser_says(const std::string& text, const std::vector<std::string>& messages) {
+  std::string out;
+  for (std::string m : messages) {
+    const auto at = m.rfind(" at ");
+    if (at != std::string::npos && at + 4 < m.size() && m.find_first_not_of("0123456789", at + 4) == std::string::npos) {
+      const std::size_t byte = std::min<std::size_t>(std::strtoull(m.c_str() + at + 4, nullptr, 10), text.size());
+      m.replace(at, std::string::npos, " on line " + std::to_string(1 + std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(byte), '\n')));
+    }
+    out += (out.empty() ? "" : "; ") + m;
+  }
+  return out;
+}
+
+// Explains why mrcal could not read the file (`said`: what mrcal's parser printed).
+InputError explain_parse_failure(const std::string& file, const std::string& text, const std::vector<std::string>& said) {
   const std::string lens = raw_value(text, "lensmodel");
   if (lens.empty())
     return InputError(file, "", "is not an mrcal .cameramodel file (no 'lensmodel' key could be read)",
@@ -199,7 +215,7 @@ InputError explain_parse_failure(const std::string& file, const std::string& tex
   }
   if (items != 2)
     return InputError(file, locate_key(text, "imagersize"), "must be two positive integers (width, height), found [" + size + "]");
-  return InputError(file, "", "mrcal cannot parse this .cameramodel file (its message is on stderr)",
+  return InputError(file, "", "mrcal cannot parse this .cameramodel file" + (said.empty() ? std::string() : ": " + parser_says(text, said)),
                     "compare it with a file written by mrcal's Python cameramodel.write()");
 }
 
@@ -313,10 +329,13 @@ CameraModel read_cameramodel(const std::filesystem::path& path) {
   // mrcal 2.2's parser reads past the end of a truncated text (an unclosed
   // string or list: a crash under AddressSanitizer). Only well-formed text is
   // handed to it: quotes closed, brackets balanced, ending with the closing '}'.
-  if (!balanced_python_literal(text)) throw explain_parse_failure(file, text);
-  std::unique_ptr<mrcal_cameramodel_t, ModelDeleter> m(
-      mrcal_read_cameramodel_string(text.data(), static_cast<int>(text.size())));
-  if (!m) throw explain_parse_failure(file, text);
+  if (!balanced_python_literal(text)) throw explain_parse_failure(file, text, {});
+  // mrcal's parser prints why it refuses a text on stderr: taken into the error instead.
+  mrcal_cameramodel_t* parsed = nullptr;
+  const std::string said = detail::capture_stderr([&] { parsed = mrcal_read_cameramodel_string(text.data(), static_cast<int>(text.size())); });
+  std::unique_ptr<mrcal_cameramodel_t, ModelDeleter> m(parsed);
+  if (!m) throw explain_parse_failure(file, text, detail::mrcal_messages(said));
+  std::fputs(said.c_str(), stderr);  // nothing from mrcal on success; another thread's output, shown as it was
 
   CameraModel model;
   model.path = path;

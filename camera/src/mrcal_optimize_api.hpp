@@ -35,12 +35,16 @@ struct SolveOutput {
   bool ok = false;
   double rms_px = 0;
   int outliers = 0;  ///< mrcal's count, including the corners given as missing
+  int outlier_passes = 0;  ///< times mrcal threw out outliers and solved again
+  /// What mrcal printed besides its outlier passes (its warnings, or why it failed), one line each,
+  /// without its source prefix; mrcal's standard error is captured, not shown.
+  std::vector<std::string> messages;
   /// Board residuals (weighted; x then y per corner, views x rows x cols),
   /// outliers 0.
   std::vector<double> board_residuals;
 };
 
-/// mrcal_optimize on the problem (the solver's own stderr chatter included).
+/// mrcal_optimize on the problem; what it prints on stderr is captured into the output.
 SolveOutput optimize(BoardProblem& problem, const Selection& selection);
 
 /// The Jacobian of all of mrcal's measurements (boards then regularisation)

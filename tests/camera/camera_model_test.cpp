@@ -242,6 +242,25 @@ TEST_F(CameraFiles, BadFilesThrowInputErrorNamingTheFile) {
                      "key 'intrinsics'", "focal lengths");
 }
 
+// A text mrcal's parser refuses (a value of another key that is not a number): mrcal's complaint, which it
+// prints on stderr as "cameramodel-parser.re(N): ... at BYTE", is in the error instead, with the line.
+TEST_F(CameraFiles, MrcalsParseComplaintIsInTheErrorNotOnStderr) {
+  std::string text = model_text("LENSMODEL_PINHOLE", "500, 500, 320, 240");
+  text.insert(text.rfind('}'), "    'clearfit_uncertainty_px': [ 0.1x ],\n");
+  const auto path = text_file("unparsed.cameramodel", text);
+  testing::internal::CaptureStderr();
+  std::string what;
+  try {
+    read_cameramodel(path);
+  } catch (const InputError& e) {
+    what = e.what();
+  }
+  const std::string printed = testing::internal::GetCapturedStderr();
+  EXPECT_EQ(printed, "");
+  EXPECT_NE(what.find(path.string() + ": mrcal cannot parse this .cameramodel file: "), std::string::npos) << what;
+  EXPECT_NE(what.find("Error parsing value for key 'clearfit_uncertainty_px' on line 6"), std::string::npos) << what;
+}
+
 TEST(CameraModel, ValidateInMemoryModels) {
   EXPECT_NO_THROW(opencv8().validate());
   EXPECT_NO_THROW(splined().validate());

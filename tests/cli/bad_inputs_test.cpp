@@ -171,6 +171,8 @@ std::vector<Case> map_cases(const std::string& camera_text) {
       {"camera", "projection uncertainty of the wrong count", {{"v.cameramodel", cam_plus("'clearfit_uncertainty_cells': [1, 1], 'clearfit_uncertainty_distance_mm': 60,"
                                                                                          " 'clearfit_uncertainty_px': [0.1, 0.2],")}},
        map_args({"--camera", "v.cameramodel"}), {"v.cameramodel", "clearfit_uncertainty_px", "holds 2 values; the cells (1 x 1) need 1"}},
+      {"camera", "a key's value that mrcal cannot parse", {{"w.cameramodel", cam_plus("'clearfit_uncertainty_px': [0.1x],")}},
+       map_args({"--camera", "w.cameramodel"}), {"w.cameramodel", "mrcal cannot parse", "Error parsing value for key 'clearfit_uncertainty_px' on line"}},
       {"pose", "missing pose file", {}, map_args({"--pose", "nope.json"}), {"nope.json"}},
       {"pose", "pose not JSON", {{"p.json", "{ cam_from_part"}}, map_args({"--pose", "p.json"}), {"p.json", "not valid JSON"}},
       {"pose", "number 1e309 in the pose", {{"p.json", "{\"schema\": \"clearfit.pose/1\", \"units\": \"mm\", \"t\": 1e309}"}}, map_args({"--pose", "p.json"}),

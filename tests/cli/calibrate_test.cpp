@@ -48,15 +48,19 @@ std::string run_text(const std::string& command) {
 
 class Calibrate : public CliTest {};
 
-TEST_F(Calibrate, CornersFileToModelAndReport) {
-  const CalibrationGrid grid{10, 10, 30};
+const CalibrationGrid kGrid{10, 10, 30};
+
+/// `views` boards seen by true_lens() with corner noise `noise_px`, seed printed.
+std::vector<BoardObservation> synthetic_views(int views, double noise_px, unsigned seed) {
   SyntheticViewsOptions o;
-  o.views = 20;
-  o.noise_px = 0.25;
-  o.seed = 41;
+  o.views = views, o.noise_px = noise_px, o.seed = seed;
   std::printf("synthetic views: seed %u\n", o.seed);
+  return synthesize_views(true_lens(), kGrid, o);
+}
+
+TEST_F(Calibrate, CornersFileToModelAndReport) {
   const CameraModel truth = true_lens();
-  write_corners_levels_vnl(synthesize_views(truth, grid, o), work() / "corners.vnl");
+  write_corners_levels_vnl(synthetic_views(20, 0.25, 41), work() / "corners.vnl");
   const RunResult r =
       run({"calibrate", "--grid", "10", "10", "--spacing-mm", "30", "--corners", "corners.vnl",
            "--imagersize", "1280", "960", "--out", "cam.cameramodel", "--report", "report.json"});
@@ -85,6 +89,31 @@ TEST_F(Calibrate, CornersFileToModelAndReport) {
   const Vec2 expected = truth.project(ours.unproject(Vec2(639.5, 479.5)));
   EXPECT_NEAR(x, expected.x(), 2e-6);
   EXPECT_NEAR(y, expected.y(), 2e-6);
+}
+
+// Corners knocked 12 px off their place are thrown out by mrcal's outlier rejection, which libmrcal announces
+// on stderr at each pass ("mrcal.c(N): Threw out some outliers (have a total of K now); going again"). The
+// user sees clearfit's own words instead: a progress line, and the count in the summary and the report.
+TEST_F(Calibrate, MrcalsOutlierChatterIsClearfitsOwnMessage) {
+  std::vector<BoardObservation> views = synthetic_views(12, 0.2, 43);
+  int moved = 0;
+  for (std::size_t v = 0; v < views.size(); v += 3)  // the first corner present in every third view
+    for (auto& c : views[v].corners)
+      if (c.z() > 0) {
+        c.x() += 12, c.y() -= 9;
+        ++moved;
+        break;
+      }
+  write_corners_levels_vnl(views, work() / "corners.vnl");
+  const RunResult r = run({"calibrate", "--grid", "10", "10", "--spacing-mm", "30", "--corners", "corners.vnl", "--imagersize", "1280",
+                           "960", "--out", "cam.cameramodel", "--report", "report.json", "--no-uncertainty"});
+  ASSERT_EQ(r.exit_code, 0) << r;
+  const auto report = nlohmann::json::parse(read_text(work() / "report.json"));
+  EXPECT_GE(report["outliers"]["count"].get<int>(), moved) << r;
+  EXPECT_EQ(r.err.find("Threw out"), std::string::npos) << "libmrcal's own words on stderr\n" << r;
+  EXPECT_EQ(r.err.find("mrcal.c("), std::string::npos) << r;
+  EXPECT_NE(r.err.find("outliers thrown out and solved again ("), std::string::npos) << r;
+  EXPECT_NE(r.out.find(std::to_string(report["outliers"]["count"].get<int>()) + " outliers"), std::string::npos) << r;
 }
 
 TEST_F(Calibrate, RenderedBoardImages) {
