@@ -101,6 +101,8 @@ Run add_assess(CLI::App& app) {
                    {"motion_compensation", cap.motion_compensation},
                    {"max_motion_px", cap.max_motion_px},
                    {"smoothing_mm", sc.assess.smoothing_mm},
+                   {"skin_blur_mm", sc.assess.skin_blur_mm},
+                   {"skin_blur_from", p->skin_blur_from},
                    {"thresholds_kpa", sc.assess.thresholds_kpa},
                    {"signal_thresholds", sc.assess.signal_thresholds},
                    {"significance_sigmas", sc.assess.significance_sigmas},

@@ -32,6 +32,35 @@ void warn_or_refuse_kpa_thresholds(const Scene& sc, const SceneFields::Options& 
                      "assess.signal_thresholds / significance_sigmas for thresholds on the signal");
 }
 
+/// The skin's blur the assessment undoes (fit/skin_blur.hpp), and where it came from. A calibration's field fit maps
+/// the signal to the contact pressure blurred by the blur it assumed (PressureCalibration::skin_blur_mm), so an
+/// assessment undoing another blur reads its pressure through a curve that does not hold for it: the calibration's
+/// blur is taken when neither the scene file nor the command line gives one, and a blur given is kept (it was asked
+/// for) with a warning when it differs from the calibration's. Without a calibration, or one that records no blur
+/// (uniform fit, older file), the blur given or the default.
+std::string choose_skin_blur(Scene& sc, const SceneFields::Options& options, const std::optional<PressureCalibration>& cal,
+                             std::vector<std::string>& warnings) {
+  const bool on_command_line = given_on_command_line(options, "assess.skin_blur_mm");
+  const auto in_file = sc.file_keys.find("assess.skin_blur_mm");
+  const std::string from = on_command_line ? "command line" : in_file != sc.file_keys.end() ? "scene file" : "default";
+  if (!cal || !std::isfinite(cal->skin_blur_mm)) return from;
+  double& blur = sc.assess.skin_blur_mm;
+  if (from == "default") {
+    blur = cal->skin_blur_mm;
+    return "calibration";
+  }
+  if (std::abs(blur - cal->skin_blur_mm) > 1e-6) {
+    const std::string given = on_command_line ? "--skin-blur-mm " + fixed(blur, 2)
+                                              : sc.file.string() + ": line " + std::to_string(in_file->second) + ", key 'assess.skin_blur_mm' " + fixed(blur, 2);
+    warnings.push_back("the skin's blur given (" + given + " mm) differs from the " + fixed(cal->skin_blur_mm, 2) + " mm the calibration " +
+                       cal->path.string() + " was fitted with: its curve maps the signal to the pressure blurred by " +
+                       fixed(cal->skin_blur_mm, 2) + " mm and the assessment undoes " + fixed(blur, 2) + " mm, so narrow places' peaks read " +
+                       (blur > cal->skin_blur_mm ? "high" : "low") + "; leave assess.skin_blur_mm out to use the calibration's, or "
+                       "calibrate again with calibrate-pressure --skin-blur-mm " + fixed(blur, 2));
+  }
+  return from;
+}
+
 }  // namespace
 
 /// Reads the scene (the command line wins), checks the options, loads and
@@ -69,6 +98,7 @@ std::unique_ptr<Prepared> prepare(AssessOpts& o) {
     p->calibration = read_pressure_calibration(sc.calibration.pressure);
     p->notes = check_calibration_matches(*p->calibration, sc.calibration.person, format_intrinsics_hash(p->part->camera.intrinsics_hash()));
   }
+  p->skin_blur_from = choose_skin_blur(sc, o.options, p->calibration, p->warnings);
   AssessmentOptions& ao = p->options;
   ao.window_frames = cap.window_frames;
   ao.compensate_motion = cap.motion_compensation;

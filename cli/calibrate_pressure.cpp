@@ -222,7 +222,9 @@ Run add_calibrate_pressure(CLI::App& app) {
                   "uniform (F/(pi a^2) against the disc's mean signal, as the study); default hertz or punch when the presses carry "
                   "profiles")
       ->check(CLI::IsMember({"punch", "hertz", "uniform"}));
-  sub->add_option("--blur-mm", o->field_fit.blur_sigma_mm, "The skin's lateral blur of the pressure (punch and hertz fields), mm")->capture_default_str();
+  sub->add_option("--skin-blur-mm,--blur-mm", o->field_fit.skin_blur_mm,
+                  "The skin's lateral blur of the pressure (Gaussian sigma, punch and hertz fields), mm; written into the calibration, "
+                  "whose assessments undo the same blur (assess's --skin-blur-mm, scene key assess.skin_blur_mm)")->capture_default_str();
   sub->add_option("--e-star-kpa", o->field_fit.e_star_kpa,
                   "The skin's plane-strain modulus E* for the hertz field, kPa (0: fitted with the calibration)")->capture_default_str();
   sub->add_option("--report", o->report, "Output report (JSON): parameters, SE, R^2, RMSE, residuals per trial, warnings");
@@ -287,7 +289,7 @@ Run add_calibrate_pressure(CLI::App& app) {
     std::string report;
     if (!o->report.empty()) {
       nlohmann::json j = report_json(r, o->presses, o->camera, o->out);
-      j["pressure_field"] = {{"kind", field}, {"blur_sigma_mm", field != "uniform" ? jnum(ff.blur_sigma_mm) : jnum(NAN)},
+      j["pressure_field"] = {{"kind", field}, {"skin_blur_mm", field != "uniform" ? jnum(ff.skin_blur_mm) : jnum(NAN)},
                              {"e_star_kpa", jnum(r.e_star_kpa)}, {"e_star_se_kpa", jnum(r.e_star_se_kpa)},
                              {"e_star_fitted", field == "hertz" && ff.e_star_kpa == 0}};
       report = j.dump(2) + "\n";

@@ -353,7 +353,8 @@ void AssessSection::bind(SceneFields& f) {
   f.key("smoothing_mm", smoothing_mm, "--smoothing-mm", "Gaussian smoothing of the signal on the chart, mm");
   f.key("skin_blur_mm", skin_blur_mm, "--skin-blur-mm",
         "The skin's lateral blur of the pressure (Gaussian sigma, mm): the signal reads the pressure blurred by it, a resolution "
-        "error undone to first order and part of each texel's sigma");
+        "error undone to first order and part of each texel's sigma (default: the blur the pressure calibration was fitted with, "
+        "else 0.3; a blur given that differs from the calibration's is warned about)");
   f.key("curvature_smoothing_mm", curvature_smoothing_mm);
   f.numbers("thresholds_kpa", thresholds_kpa, 0, "--thresholds-kpa", "Hotspot thresholds, kPa (needs a pressure calibration)");
   f.numbers("signal_thresholds", signal_thresholds, 0, "--signal-threshold",

@@ -52,10 +52,10 @@ void set_drives(std::vector<Ring>& rings, const FieldFitOptions& o, double e_sta
   for (Ring& g : rings) {
     if (o.field == PressureField::hertz) {
       const double a = contact::HertzSphere{g.sphere_radius_mm, g.force_n, e_star_kpa}.contact_radius_mm();
-      for (std::size_t j = 0; j < g.radii.size(); ++j) g.drive_samples[j] = g.force_n * blurred_hertz_kpa_per_newton(g.radii[j], a, o.blur_sigma_mm);
+      for (std::size_t j = 0; j < g.radii.size(); ++j) g.drive_samples[j] = g.force_n * blurred_hertz_kpa_per_newton(g.radii[j], a, o.skin_blur_mm);
     } else {
       auto& profile = profiles[g.indenter_radius_mm];
-      if (!profile) profile = std::make_unique<IndenterProfile>(o.field, g.indenter_radius_mm, o.blur_sigma_mm);
+      if (!profile) profile = std::make_unique<IndenterProfile>(o.field, g.indenter_radius_mm, o.skin_blur_mm);
       for (std::size_t j = 0; j < g.radii.size(); ++j) g.drive_samples[j] = g.force_n * profile->kpa_per_newton(g.radii[j]);
     }
     g.drive_kpa = 0;
@@ -165,8 +165,8 @@ double robust_scale(std::vector<double> v) {
 }  // namespace
 
 void FieldFitOptions::validate() const {
-  if (!SkinBlur{blur_sigma_mm}.valid())
-    throw InputError("", "--blur-mm", std::string("expected ") + SkinBlur::rule + ", got " + significant_digits(blur_sigma_mm, 4));
+  if (!SkinBlur{skin_blur_mm}.valid())
+    throw InputError("", "--skin-blur-mm", std::string("expected ") + SkinBlur::rule + ", got " + significant_digits(skin_blur_mm, 4));
   if (!(e_star_kpa >= 0 && e_star_kpa < 1e5))
     throw InputError("", "--e-star-kpa", "expected the skin's plane-strain modulus in kPa (> 0), or 0 to fit it");
   if (samples_per_ring < 1) throw std::invalid_argument("samples_per_ring must be >= 1");
@@ -254,6 +254,7 @@ PressureFitResult fit_pressure_field(const std::vector<CalibrationPress>& presse
   r.rmse_kpa_inliers = r.rmse_kpa;
   r.presses_in_range = in_range;
   cal.rmse_kpa = r.rmse_kpa;
+  cal.skin_blur_mm = field.skin_blur_mm;
   cal.r2 = r.r2_logistic;
   for (std::size_t i = 0; i < presses.size(); ++i) {  // per press: the mean ring residual
     PressResidual& pr = r.residuals[i];
@@ -275,7 +276,7 @@ PressureFitResult fit_pressure_field(const std::vector<CalibrationPress>& presse
     e_star_text = ", E* " + fixed_digits(r.e_star_kpa, 1) + (n == 4 ? " +- " + fixed_digits(r.e_star_se_kpa, 1) + " kPa fitted" : " kPa given");
   r.warnings.push_back(std::string("fitted to ") + std::to_string(rings.size()) + " rings of " + std::to_string(presses.size()) +
                         " presses with the " + to_string(field.field) + " pressure field (blur " +
-                       std::to_string(field.blur_sigma_mm).substr(0, 4) + " mm" + e_star_text + "); per-press residuals are ring means");
+                       fixed_digits(field.skin_blur_mm, 2) + " mm" + e_star_text + "); per-press residuals are ring means");
   return r;
 }
 

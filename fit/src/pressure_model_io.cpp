@@ -5,6 +5,7 @@
 #include <clearfit/format.hpp>
 #include <clearfit/utf8.hpp>
 #include <clearfit/fit/pressure_model.hpp>
+#include <clearfit/fit/skin_blur.hpp>
 
 #include <nlohmann/json.hpp>
 
@@ -216,6 +217,7 @@ void write_pressure_calibration(const PressureCalibration& cal, const std::files
       {"noise_sigma", cal.noise_sigma},
       {"pressure_range_kpa", {cal.p_min_kpa, cal.p_max_kpa}},
       {"presses", cal.presses},
+      {"skin_blur_mm", finite_or_null(cal.skin_blur_mm)},
       {"quality", {{"rmse_kpa", finite_or_null(cal.rmse_kpa)}, {"r2", finite_or_null(cal.r2)}, {"r2_linear", finite_or_null(cal.r2_linear)}}},
       // Informational (not read back): the limits the inverse applies.
       {"limits", {{"detection_signal", cal.detection_signal()},
@@ -317,6 +319,14 @@ PressureCalibration read_pressure_calibration(const std::filesystem::path& path)
   cal.p_min_kpa = range[0].get<double>();
   cal.p_max_kpa = range[1].get<double>();
   cal.presses = get(j, "presses", "", json::value_t::number_integer).get<int>();
+  // The skin blur the fit assumed: optional (files written before it was recorded have none), null for the uniform fit.
+  if (j.contains("skin_blur_mm") && !j.at("skin_blur_mm").is_null()) {
+    const json& b = j.at("skin_blur_mm");
+    if (!b.is_number() || !SkinBlur{b.get<double>()}.valid())
+      throw InputError(file, "key 'skin_blur_mm'", std::string("expected ") + SkinBlur::rule + ", or null (not modelled), found " + b.dump(),
+                       "the blur the calibration was fitted with (calibrate-pressure --skin-blur-mm)");
+    cal.skin_blur_mm = b.get<double>();
+  }
   const json& q = get(j, "quality", "", json::value_t::object);
   auto quality = [&](const char* key) {
     if (!q.contains(key)) throw InputError(file, std::string("key 'quality.") + key + "'", "is missing");

@@ -473,6 +473,7 @@ TEST(CalibrationFile, RoundTrip) {
     EXPECT_EQ(back.p_max_kpa, cal.p_max_kpa);
     EXPECT_EQ(back.rmse_kpa, cal.rmse_kpa);
     EXPECT_EQ(back.presses, cal.presses);
+    EXPECT_TRUE(std::isnan(back.skin_blur_mm));  // the uniform fit models no blur: null
     EXPECT_EQ(back.path, file);
     for (double y : {0.0, 0.01, 0.02, 0.03, 0.045, 0.06}) {
       const PressureEstimate a = back.invert(y), b = cal.invert(y);
@@ -484,6 +485,17 @@ TEST(CalibrationFile, RoundTrip) {
     EXPECT_EQ(j.at("schema"), "clearfit.pressure-calibration/1");
   }
   EXPECT_EQ(format_intrinsics_hash(0xabcULL), "0000000000000abc");
+  // The skin blur a field fit assumed is kept; a file without the key (written before it was recorded) reads NaN.
+  PressureCalibration blurred = fit_pressure_calibration(simulate(8), options()).calibration;
+  blurred.skin_blur_mm = 0.45;
+  const fs::path file = dir.path / "blurred.json";
+  write_pressure_calibration(blurred, file);
+  EXPECT_EQ(read_pressure_calibration(file).skin_blur_mm, 0.45);
+  auto j = nlohmann::json::parse(std::ifstream(file));
+  EXPECT_EQ(j.at("skin_blur_mm"), 0.45);
+  j.erase("skin_blur_mm");
+  std::ofstream(file, std::ios::trunc) << j.dump(2);
+  EXPECT_TRUE(std::isnan(read_pressure_calibration(file).skin_blur_mm));
 }
 
 TEST(CalibrationFile, RefusesWrongSchemaMissingKeysAndBadValues) {
@@ -522,6 +534,11 @@ TEST(CalibrationFile, RefusesWrongSchemaMissingKeysAndBadValues) {
   c = j;
   c["model"] = "cubic";
   expect_error(c, "key 'model'");
+  for (const nlohmann::json& blur : {nlohmann::json(-0.1), nlohmann::json(6.0), nlohmann::json("0.3")}) {
+    c = j;
+    c["skin_blur_mm"] = blur;
+    expect_error(c, "key 'skin_blur_mm'");
+  }
   const fs::path broken = dir.write("broken.json", "{\n  \"schema\": \"clearfit.pressure-calibration/1\",\n  oops\n}");
   try {
     read_pressure_calibration(broken);

@@ -41,6 +41,8 @@ struct Prepared {
   std::optional<PressureCalibration> calibration;
   std::vector<std::string> notes;
   std::vector<std::string> warnings;  ///< about the scene's settings, for the assessment's warnings (report.json)
+  /// Where the skin's blur (AssessSection::skin_blur_mm) came from: "command line", "scene file", "calibration" or "default".
+  std::string skin_blur_from = "default";
   std::string cache;
   AssessmentOptions options;
   CaptureSources sources;

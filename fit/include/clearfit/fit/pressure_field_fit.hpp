@@ -28,10 +28,10 @@ namespace clearfit {
 
 struct FieldFitOptions {
   PressureField field = PressureField::punch;
-  double blur_sigma_mm = SkinBlur{}.sigma_mm;  ///< the skin's lateral blur (skin_blur.hpp owns its default and rule)
+  double skin_blur_mm = SkinBlur{}.sigma_mm;  ///< the skin's lateral blur (skin_blur.hpp owns its default and rule)
   int samples_per_ring = 8;
   double e_star_kpa = 0;        ///< hertz: the skin's plane-strain modulus E* (kPa); 0: fitted
-  void validate() const;        ///< throws InputError naming --blur-mm or --e-star-kpa
+  void validate() const;        ///< throws InputError naming --skin-blur-mm or --e-star-kpa
 };
 
 /// Whether every press carries a radial profile.

@@ -111,6 +111,10 @@ struct PressureCalibration {
   double r2 = 0;                      ///< R² of the signal for this model
   double r2_linear = 0;               ///< R² of the study's linear model on the same presses
   int presses = 0;                    ///< number of presses fitted
+  /// The skin's lateral blur (mm) the field fit assumed: its curve maps the signal to the contact pressure blurred by
+  /// it, so an assessment undoes the same blur (skin_blur.hpp). NaN: not modelled (the uniform fit, F/πa² against the
+  /// disc's mean signal) or a file written before it was recorded.
+  double skin_blur_mm = std::numeric_limits<double>::quiet_NaN();
   std::filesystem::path path;         ///< file it was read from (empty in memory); named in errors
 
   /// Forward model y(p), p in kPa.
