@@ -5,7 +5,8 @@
 // Counted: every texel whose truth lies within the calibration's range (its detection and saturation
 // pressures, calibration.json `limits`) and whose estimate has a σ; texels whose truth is in range but whose
 // estimate is below detection or saturated have no interval and are counted apart (printed). Nothing else is
-// left out: no edge or steep-gradient texels are excluded.
+// left out: no edge or steep-gradient texels are excluded. Printed apart: the counted texels estimated under the capture's
+// detection limit (the places' tails the hysteresis keeps) and the estimates whose truth lies below the calibration's range.
 // The hotspots' figures against the truth's places (the truth thresholded at the lowest threshold, each texel to
 // the nearer source): every place found has an area and a centroid σ, and how often the 95 % intervals of its
 // mean, area, peak and centroid hold the truth is printed (the centroid's σ is the rms distance in the plane: 95 %
@@ -32,6 +33,10 @@ namespace {
 
 struct Counts {
   long long texels = 0, inside = 0, censored = 0;  ///< censored: truth in range, estimate below detection or saturated
+  /// Printed apart: the counted texels whose estimate is under the capture's detection limit (report.json
+  /// pressure.detection_limit_kpa: the places' tails the hysteresis keeps), and the estimates whose truth lies below
+  /// the calibration's range (not counted above).
+  long long tail = 0, tail_inside = 0, below_range = 0, below_range_inside = 0;
   double sum_z2 = 0, sum_z = 0;
   /// The hotspots' figures (mean, area, centroid, peak): how many had a σ, how many held the truth.
   std::map<std::string, std::pair<int, int>> places;
@@ -146,9 +151,11 @@ Counts run_seed(const fs::path& dir, int seed) {
   };
   Counts c;
   const std::size_t w = p.shape[1];
+  const double tail_below = nlohmann::json::parse(read_text(dir / "out" / "report.json"))["pressure"]["detection_limit_kpa"];
   for (std::size_t k = 0; k < p.values.size(); ++k) {
     const double t = truth_at(ag["uv_min_mm"][0].get<double>() + a_mm * (k % w), ag["uv_min_mm"][1].get<double>() + a_mm * (k / w));
     // The truth within the calibration's range (between its detection and saturation pressures), the estimate with a σ.
+    if (t < p_lo && std::isfinite(s.values[k])) ++c.below_range, c.below_range_inside += std::abs(p.values[k] - t) <= 1.96 * s.values[k];
     if (!(t >= p_lo && t <= p_hi)) continue;
     if (!std::isfinite(s.values[k])) {
       ++c.censored;
@@ -157,6 +164,7 @@ Counts run_seed(const fs::path& dir, int seed) {
     const double z = (p.values[k] - t) / s.values[k];
     ++c.texels;
     c.inside += std::abs(z) <= 1.96;
+    if (p.values[k] < tail_below) ++c.tail, c.tail_inside += std::abs(z) <= 1.96;
     c.sum_z2 += z * z;
     c.sum_z += z;
   }
@@ -182,10 +190,15 @@ TEST(SigmaCoverage, NinetyFivePercentIntervalsHoldTheTruth) {
                 std::sqrt(c.sum_z2 / std::max(1LL, c.texels)));
     EXPECT_GT(c.texels, 500) << "seed " << seed;
     all.texels += c.texels, all.inside += c.inside, all.sum_z2 += c.sum_z2, all.sum_z += c.sum_z;
+    all.tail += c.tail, all.tail_inside += c.tail_inside, all.below_range += c.below_range, all.below_range_inside += c.below_range_inside;
     for (const auto& [what, n] : c.places) all.places[what].first += n.first, all.places[what].second += n.second;
   }
   for (const auto& [what, n] : all.places)
     std::printf("hotspot %s: the 95 %% interval holds the truth %d of %d times\n", what.c_str(), n.second, n.first);
+  std::printf("of them estimated under the capture's detection limit (the places' tails): %.1f %% of %lld; estimates whose truth is below "
+              "the calibration's range (not counted): %.1f %% of %lld inside p ± 1.96σ\n",
+              100.0 * all.tail_inside / std::max(1LL, all.tail), all.tail, 100.0 * all.below_range_inside / std::max(1LL, all.below_range),
+              all.below_range);
   const double coverage = static_cast<double>(all.inside) / all.texels;
   std::printf("coverage of the 95 %% intervals: %.1f %% of %lld texels over %zu seeds (mean z %+.2f, rms z %.2f)\n", 100 * coverage,
               all.texels, seeds.size(), all.sum_z / all.texels, std::sqrt(all.sum_z2 / all.texels));
