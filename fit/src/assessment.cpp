@@ -97,15 +97,6 @@ cv::Mat chart_picture(const cv::Mat& bgr, const InverseMap& inv, const Vec2& shi
   return out;
 }
 
-/// The field at the chart's vertices (sample_at_vertices), reaching `reach_texels` for boundary vertices.
-std::vector<float> vertex_values(const ChartField& field, const Chart& chart, double reach_texels) {
-  std::vector<float> out = sample_at_vertices(field, chart);
-  for (std::size_t v = 0; v < out.size(); ++v)
-    if (!std::isfinite(out[v]) && chart.uv[v].allFinite()) out[v] = field.nearest_defined(chart.uv[v], reach_texels);
-  return out;
-}
-
-
 /// The baseline's own map at the given or estimated gap; fills a.baseline_geometry and its warnings.
 RefractionMap baseline_geometry(const AssessmentScene& scene, const PhaseAverage& base_avg, const PhaseAverage& worn_avg, Assessment& a,
                                 const AssessmentOptions& o) {
@@ -455,7 +446,7 @@ void timeline(const AssessmentScene& scene, const std::optional<PressureCalibrat
 
 /// Coverage of the contact surface (seen, under glare, hidden behind the part or outside the view)
 /// and the values at the mesh's vertices; fills a.coverage, a.vertex_* and the coverage warning.
-void coverage_and_vertices(const AssessmentScene& scene, Assessment& a) {
+void coverage_and_vertices(const AssessmentScene& scene, double smoothing_mm, Assessment& a) {
   const RefractionMap& map = *scene.forward;
   const ChartGrid& g = a.signal.y.grid;
   Coverage& c = a.coverage;
@@ -484,17 +475,17 @@ void coverage_and_vertices(const AssessmentScene& scene, Assessment& a) {
                         px.y() <= scene.camera->height - 0.5;
     (inside ? c.hidden_blocked_mm2 : c.hidden_outside_view_mm2) += area;
   }
-  // Values at the vertices. A vertex on the contact surface's boundary is seen when seen skin lies
-  // within two camera pixels of it (the texels between it and the first seen pixel are unseen).
-  const double pixels = static_cast<double>(std::max<long long>(1, by_status[static_cast<int>(PixelStatus::valid)]));
-  const double reach = std::max(kVertexReachTexels, 2 * std::sqrt(c.seen_area_mm2 / pixels) / g.texel_mm);
+  // Values at the vertices the camera sees in the worn capture (seen skin within two of its pixels,
+  // measured where it lies), reaching as far again as the signal's smoothing for their value.
+  const std::vector<float> reach = vertex_reach_texels(*scene.inverse, a.glare_texels, *scene.chart, 2);
+  const double extra_mm = smoothing_mm;
   if (a.calibrated) {
-    a.vertex_pressure = vertex_values(a.pressure, *scene.chart, reach);
-    a.vertex_pressure_sigma = vertex_values(a.pressure_sigma, *scene.chart, reach);
+    a.vertex_pressure = vertex_values(a.pressure, *scene.chart, reach, extra_mm);
+    a.vertex_pressure_sigma = vertex_values(a.pressure_sigma, *scene.chart, reach, extra_mm);
     for (std::size_t v = 0; v < a.vertex_pressure_sigma.size(); ++v)  // no σ for a bound (below detection) or no value
       if (!(a.vertex_pressure[v] > 0)) a.vertex_pressure_sigma[v] = kNaN;
   }
-  a.vertex_signal = vertex_values(a.signal.y, *scene.chart, reach);
+  a.vertex_signal = vertex_values(a.signal.y, *scene.chart, reach, extra_mm);
   if (c.contact_area_mm2 > 0 && c.seen_area_mm2 < 0.5 * c.contact_area_mm2)
     a.warnings.push_back("the camera sees only " + fmt(100 * c.seen_area_mm2 / c.contact_area_mm2) +
                          " % of the contact surface through the part; the rest is not assessed");
@@ -536,7 +527,7 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
   const BlanchingOptions bo = chart_signal(scene, own_geometry, p, b, o, a);
   pressure_and_hotspots(scene, calibration, bo.spatial_noise || bo.local_spatial_noise, o, a);
   timeline(scene, calibration, own_geometry, p, b, bo, o, a);
-  coverage_and_vertices(scene, a);
+  coverage_and_vertices(scene, bo.smoothing_mm, a);
   pictures(scene, p, a);
   a.total_ms = std::chrono::duration<double, std::milli>(Clock::now() - t0).count();
   return a;

@@ -4,9 +4,12 @@
 #include <clearfit/fit/assessment_stages.hpp>
 #include <clearfit/format.hpp>
 
+#include <Eigen/SVD>
+
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <optional>
 #include <opencv2/imgproc.hpp>
 
 namespace clearfit {
@@ -72,30 +75,44 @@ ChartField position_sigma(const ChartRaster& raster, const Rigid3& cam_from_part
   return out;
 }
 
-IntrinsicsTerm intrinsics_term(const InverseMap& inv, const ChartField& y, const ProjectionUncertainty& u, int width, int height) {
-  const ChartGrid& grid = y.grid;
-  const ChartField nan{grid, std::vector<float>(grid.size(), kNaN)};
-  IntrinsicsTerm out{nan, nan, nan};
-  auto pixel = [&](int i, int j) {
-    const auto k = inv.index(i, j);
-    return inv.valid[k] ? Vec2(inv.map_x[k], inv.map_y[k]) : Vec2(kNaN, kNaN);
-  };
-  auto derivative = [&](int i, int j, int di, int dj) {  // ∂pixel per mm along (di, dj)
+namespace {
+
+Vec2 texel_pixel(const InverseMap& inv, int i, int j) {
+  const auto k = inv.index(i, j);
+  return inv.valid[k] ? Vec2(inv.map_x[k], inv.map_y[k]) : Vec2(kNaN, kNaN);
+}
+
+/// ∂pixel/∂uv (px per mm) at texel (i, j) of the inverse map, by central differences (one-sided at its
+/// edges); nullopt where the texel has no pixel or the Jacobian is singular.
+std::optional<Eigen::Matrix2d> pixel_jacobian(const InverseMap& inv, int i, int j) {
+  auto derivative = [&](int di, int dj) {  // ∂pixel per mm along (di, dj)
     const bool ahead = i + di < inv.width && j + dj < inv.height, behind = i - di >= 0 && j - dj >= 0;
-    const Vec2 a = ahead ? pixel(i + di, j + dj) : Vec2(kNaN, kNaN), b = behind ? pixel(i - di, j - dj) : Vec2(kNaN, kNaN), c = pixel(i, j);
+    const Vec2 a = ahead ? texel_pixel(inv, i + di, j + dj) : Vec2(kNaN, kNaN);
+    const Vec2 b = behind ? texel_pixel(inv, i - di, j - dj) : Vec2(kNaN, kNaN), c = texel_pixel(inv, i, j);
     if (a.allFinite() && b.allFinite()) return Vec2((a - b) / (2 * inv.texel_mm));
     if (a.allFinite()) return Vec2((a - c) / inv.texel_mm);
     if (b.allFinite()) return Vec2((c - b) / inv.texel_mm);
     return Vec2(kNaN, kNaN);
   };
+  if (!texel_pixel(inv, i, j).allFinite()) return std::nullopt;
+  Eigen::Matrix2d J;
+  J.col(0) = derivative(1, 0), J.col(1) = derivative(0, 1);
+  if (!J.allFinite() || std::abs(J.determinant()) < 1e-12) return std::nullopt;
+  return J;
+}
+
+}  // namespace
+
+IntrinsicsTerm intrinsics_term(const InverseMap& inv, const ChartField& y, const ProjectionUncertainty& u, int width, int height) {
+  const ChartGrid& grid = y.grid;
+  const ChartField nan{grid, std::vector<float>(grid.size(), kNaN)};
+  IntrinsicsTerm out{nan, nan, nan};
   for (int j = 0; j < inv.height; ++j)
     for (int i = 0; i < inv.width; ++i) {
-      const Vec2 q = pixel(i, j);
-      if (!q.allFinite()) continue;
-      Eigen::Matrix2d J;
-      J.col(0) = derivative(i, j, 1, 0), J.col(1) = derivative(i, j, 0, 1);
-      if (!J.allFinite() || std::abs(J.determinant()) < 1e-12) continue;
-      const Eigen::Matrix2d A = J.inverse();
+      const auto J = pixel_jacobian(inv, i, j);
+      if (!J) continue;
+      const Vec2 q = texel_pixel(inv, i, j);
+      const Eigen::Matrix2d A = J->inverse();
       const double sigma_q = u.at(q, width, height);
       const auto k = grid.index(i, j);
       out.pixel_sigma_px.value[k] = static_cast<float>(sigma_q);
@@ -371,6 +388,49 @@ void warn_thresholds_below_detection(const std::vector<double>& thresholds_kpa, 
                          " kPa is not reported; a place found is read down to about " + fixed_digits(limit.tail_kpa, 1) +
                          " kPa (its tail), so its area at " + at + " is not underestimated by the limit");
   }
+}
+
+std::vector<float> vertex_reach_texels(const InverseMap& inv, const std::vector<std::uint8_t>& excluded, const Chart& chart,
+                                       double pixels) {
+  // Per seen texel, the skin length of a camera pixel's longer axis there: 1/σ_min(∂pixel/∂uv).
+  std::vector<float> footprint_mm(static_cast<std::size_t>(inv.width) * inv.height, kNaN);
+  float longest = 0;
+  for (int j = 0; j < inv.height; ++j)
+    for (int i = 0; i < inv.width; ++i) {
+      const auto k = inv.index(i, j);
+      if (!excluded.empty() && excluded[k]) continue;
+      const auto J = pixel_jacobian(inv, i, j);
+      if (!J) continue;
+      const double smallest = Eigen::JacobiSVD<Eigen::Matrix2d>(*J).singularValues()(1);
+      // Bounded: a texel seen at grazing incidence would otherwise reach across the chart.
+      if (smallest > 0) longest = std::max(longest, footprint_mm[k] = static_cast<float>(std::min(1 / smallest, 16 * inv.texel_mm)));
+    }
+  const double window = std::max(kVertexReachTexels, pixels * longest / inv.texel_mm);
+  std::vector<float> out(chart.uv.size(), kNaN);
+  for (std::size_t v = 0; v < chart.uv.size(); ++v) {
+    if (!chart.uv[v].allFinite()) continue;
+    const double fx = (chart.uv[v].x() - inv.uv_origin.x()) / inv.texel_mm, fy = (chart.uv[v].y() - inv.uv_origin.y()) / inv.texel_mm;
+    const int x0 = std::max(0, static_cast<int>(std::floor(fx - window))), x1 = std::min(inv.width - 1, static_cast<int>(std::ceil(fx + window)));
+    const int y0 = std::max(0, static_cast<int>(std::floor(fy - window))), y1 = std::min(inv.height - 1, static_cast<int>(std::ceil(fy + window)));
+    for (int y = y0; y <= y1; ++y)
+      for (int x = x0; x <= x1; ++x) {
+        const float f = footprint_mm[inv.index(x, y)];
+        if (!std::isfinite(f)) continue;
+        const double reach = std::max(kVertexReachTexels, pixels * f / inv.texel_mm);
+        if (std::hypot(x - fx, y - fy) <= reach && !(out[v] >= reach)) out[v] = static_cast<float>(reach);
+      }
+  }
+  return out;
+}
+
+std::vector<float> vertex_values(const ChartField& field, const Chart& chart, const std::vector<float>& reach_texels, double extra_mm) {
+  std::vector<float> out(chart.uv.size(), kNaN);
+  for (std::size_t v = 0; v < chart.uv.size() && v < reach_texels.size(); ++v) {
+    if (!std::isfinite(reach_texels[v])) continue;
+    out[v] = field.sample(chart.uv[v]);
+    if (!std::isfinite(out[v])) out[v] = field.nearest_defined(chart.uv[v], reach_texels[v] + extra_mm / field.grid.texel_mm);
+  }
+  return out;
 }
 
 }  // namespace clearfit

@@ -25,6 +25,21 @@ namespace {
 
 const fs::path kWristband = fs::path(CLEARFIT_SAMPLES_DIR) / "wristband";
 
+/// The wristband's contact surface, and per vertex whether it lies on a contact face (`on`) and on another
+/// face (`off`): both on the contact surface's boundary.
+struct ContactSides {
+  ContactSurface contact;
+  std::vector<int> on, off;
+};
+ContactSides contact_sides(const Mesh& mesh) {
+  ContactSelector sel;
+  sel.group = "contact";
+  ContactSides s{select_contact(mesh, sel), std::vector<int>(mesh.vertices.size(), 0), std::vector<int>(mesh.vertices.size(), 0)};
+  for (int f = 0; f < mesh.num_faces(); ++f)
+    for (int k = 0; k < 3; ++k) (s.contact.is_contact[f] ? s.on : s.off)[mesh.faces[f][k]] = 1;
+  return s;
+}
+
 class AssessCli : public CliTest {
  protected:
   /// Simulated captures and the wearer's calibration shared by the tests of this suite (rendered once for
@@ -540,12 +555,10 @@ TEST_F(AssessCli, WritesHotspotAndVertexTablesBesideTheGlb) {
   // the other 6 (the band's +y edge near its +x end, and one corner) lie under the glare mask, which finds 2
   // regions (6.9 % of the seen skin) although these captures render no glare: with --no-glare-mask all 214 such
   // vertices are seen. Masked skin is unseen by design; the false regions are the glare detector's.
-  ContactSelector sel;
-  sel.group = "contact";
-  const ContactSurface contact = select_contact(mesh, sel);
-  std::vector<int> on_contact(mesh.vertices.size(), 0), off_contact(mesh.vertices.size(), 0);
-  for (int f = 0; f < mesh.num_faces(); ++f)
-    for (int k = 0; k < 3; ++k) (contact.is_contact[f] ? on_contact : off_contact)[mesh.faces[f][k]] = 1;
+  const ContactSides sides = contact_sides(mesh);
+  const ContactSurface& contact = sides.contact;
+  const std::vector<int>& on_contact = sides.on;
+  const std::vector<int>& off_contact = sides.off;
   std::vector<std::vector<int>> inner(mesh.vertices.size());
   for (int f : contact.faces)
     for (int k = 0; k < 3; ++k)
@@ -563,6 +576,63 @@ TEST_F(AssessCli, WritesHotspotAndVertexTablesBesideTheGlb) {
   std::printf("contact-boundary vertices beside seen skin: %d, seen: %d\n", boundary, boundary_seen);
   EXPECT_GT(boundary, 50);
   EXPECT_GE(boundary_seen, 0.95 * boundary);
+}
+
+// Every contact vertex the camera sees is _SEEN 1, the contact boundary included. The oracle is the refraction
+// map alone (clearfit map: per pixel the skin point): a vertex is seen when a pixel's skin point lies within one
+// pixel spacing of it (the longer of that pixel's steps to its four neighbours), not seen when none lies within
+// three. The not-worn capture is held 1 mm off the skin, so the signal stops short of the boundary, where the
+// held baseline's map cannot see; glare masking is off (these captures render none, and masked skin is unseen
+// by design).
+TEST_F(AssessCli, EveryVertexTheCameraSeesIsSeenTheBoundaryIncluded) {
+  scene(two_captures(), calibration());
+  RunResult r = assess({"--no-glare-mask"});
+  ASSERT_EQ(r.exit_code, 0) << r;
+  r = run_clearfit({"map", "--scene", "scene.yaml", "--out", "map.npy", "--no-cache"}, work(), root() / "capture", 120);
+  ASSERT_EQ(r.exit_code, 0) << r;
+  const npy::Float32Array map = npy::read_float32(work() / "map.npy");
+  ASSERT_EQ(map.shape.size(), 3u);
+  const int H = static_cast<int>(map.shape[0]), W = static_cast<int>(map.shape[1]);
+  auto point = [&](int x, int y) {
+    const float* p = &map.values[(static_cast<std::size_t>(y) * W + x) * 3];
+    return Eigen::Vector3d(p[0], p[1], p[2]);
+  };
+  std::vector<Eigen::Vector3d> skin;
+  std::vector<double> spacing;
+  for (int y = 0; y < H; ++y)
+    for (int x = 0; x < W; ++x) {
+      const Eigen::Vector3d p = point(x, y);
+      if (!p.allFinite()) continue;
+      double step = 0;
+      for (auto [dx, dy] : {std::pair{1, 0}, {-1, 0}, {0, 1}, {0, -1}})
+        if (x + dx >= 0 && x + dx < W && y + dy >= 0 && y + dy < H && point(x + dx, y + dy).allFinite())
+          step = std::max(step, (point(x + dx, y + dy) - p).norm());
+      if (step > 0) skin.push_back(p), spacing.push_back(step);
+    }
+  const Mesh mesh = load_mesh(kWristband / "wristband.obj");
+  const ContactSides sides = contact_sides(mesh);
+  const std::vector<int>& on_contact = sides.on;
+  const std::vector<int>& off_contact = sides.off;
+  const auto vs = csv_rows(read_text(work() / "out" / "vertices.csv"));
+  ASSERT_EQ(vs.size(), mesh.vertices.size() + 1);
+  int sees = 0, boundary_sees = 0, seen_of_them = 0, far = 0, seen_far = 0;
+  for (std::size_t v = 0; v < mesh.vertices.size(); ++v) {
+    if (!on_contact[v]) continue;
+    double ratio = 1e9;  // distance over the pixel spacing there, of the pixel where it is smallest
+    for (std::size_t k = 0; k < skin.size(); ++k) ratio = std::min(ratio, (skin[k] - mesh.vertices[v]).norm() / spacing[k]);
+    const bool seen = vs[v + 1][5] == "1";
+    if (ratio <= 1) {
+      ++sees, boundary_sees += off_contact[v], seen_of_them += seen;
+      EXPECT_TRUE(seen) << "vertex " << v << (off_contact[v] ? " (contact boundary)" : "") << " is seen by the camera, "
+                        << ratio << " pixel spacings from a pixel's skin point";
+    } else if (ratio > 3) {
+      ++far, seen_far += seen;
+      EXPECT_FALSE(seen) << "vertex " << v << " is " << ratio << " pixel spacings from the seen skin";
+    }
+  }
+  std::printf("contact vertices the camera sees: %d (%d on the boundary), _SEEN: %d; beyond 3 spacings: %d, _SEEN: %d\n", sees,
+              boundary_sees, seen_of_them, far, seen_far);
+  EXPECT_GT(boundary_sees, 100);
 }
 
 TEST_F(AssessCli, RefusesBadInputAndLeavesNothing) {

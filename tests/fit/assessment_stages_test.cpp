@@ -448,5 +448,48 @@ TEST(AssessmentStages, ThresholdsBelowTheDetectionLimitAreNamedWithTheLimit) {
   EXPECT_TRUE(warnings.empty());
 }
 
+// A boundary vertex the camera sees obliquely: the worn map's first seen texel is 3 texels (0.15 mm) in from
+// it, and a camera pixel spans 0.2 mm along u there (kx = 5 px/mm), so two pixels reach 8 texels and the
+// vertex is seen; its value is the nearest signal within 8 texels plus the smoothing's 0.25 mm (5 texels),
+// here 8 texels in (the signal stops short of the seen skin, as beside a held baseline's blind strip). Seen
+// square on (kx = 20 px/mm) two pixels are 2 texels and the same vertex is not seen. A vertex 12 texels from
+// the seen skin is not seen though a signal lies within its value's reach; one under the glare mask neither.
+TEST(AssessmentStages, VerticesAreSeenWithinTwoCameraPixelsMeasuredWhereTheSkinIsSeen) {
+  constexpr int kW = 40, kH = 30;
+  constexpr double kTexel = 0.05;
+  auto map = [&](double kx) {
+    InverseMap inv = affine_map(kW, kH, kTexel, kx, 20, 0, 10, 10);
+    for (int j = 0; j < kH; ++j)
+      for (int i = 0; i < kW; ++i)
+        if (i < (j >= 20 ? 3 : 12)) inv.valid[inv.index(i, j)] = 0, inv.map_x[inv.index(i, j)] = inv.map_y[inv.index(i, j)] = -1;
+    return inv;
+  };
+  const InverseMap oblique = map(5);
+  ChartField signal{ChartGrid{kW, kH, kTexel, Vec2::Zero()}, std::vector<float>(kW * kH, kNaN)};
+  for (int j = 0; j < kH; ++j)
+    for (int i = 8; i < kW; ++i)
+      if (oblique.valid[oblique.index(i, j)]) signal.value[signal.grid.index(i, j)] = static_cast<float>(i + 100 * j);
+  Chart chart;
+  chart.uv = {Vec2(0, 25 * kTexel), Vec2(0, 4 * kTexel), Vec2(30 * kTexel, 25 * kTexel), Vec2(kNaN, kNaN)};
+  const std::vector<float> reach = vertex_reach_texels(oblique, {}, chart, 2);
+  ASSERT_EQ(reach.size(), 4u);
+  EXPECT_NEAR(reach[0], 2 * 0.2 / kTexel, 1e-4);  // seen: 8 texels
+  EXPECT_TRUE(std::isnan(reach[1]));               // 12 texels from the seen skin
+  EXPECT_NEAR(reach[2], 8, 1e-4);
+  EXPECT_TRUE(std::isnan(reach[3]));  // no chart coordinate
+  const std::vector<float> v = vertex_values(signal, chart, reach, 0.25);
+  EXPECT_EQ(v[0], 8 + 100 * 25);  // the nearest signal, 8 texels in
+  EXPECT_TRUE(std::isnan(v[1]));  // though a signal lies 12 texels from it, within 8 + 5
+  EXPECT_FLOAT_EQ(v[2], 30 + 100 * 25);  // interior: the bilinear sample at a texel centre
+  EXPECT_TRUE(std::isnan(v[3]));
+  // Square on: two pixels are two texels.
+  EXPECT_TRUE(std::isnan(vertex_reach_texels(map(20), {}, chart, 2)[0]));
+  // Under the glare mask from its first seen texel to u = 20 texels: not seen.
+  std::vector<std::uint8_t> glare(kW * kH, 0);
+  for (int j = 20; j < kH; ++j)
+    for (int i = 3; i < 20; ++i) glare[oblique.index(i, j)] = 1;
+  EXPECT_TRUE(std::isnan(vertex_reach_texels(oblique, glare, chart, 2)[0]));
+}
+
 }  // namespace
 }  // namespace clearfit

@@ -111,4 +111,22 @@ DetectionLimit detection_limit(const PressureCalibration& calibration, double no
 void warn_thresholds_below_detection(const std::vector<double>& thresholds_kpa, const DetectionLimit& limit,
                                      std::vector<std::string>& warnings);
 
+// ---- The values at the mesh's vertices (stage 7) ----
+
+/// Which chart vertices the camera sees in the worn capture, and how far (texels) a vertex may look for its
+/// value. A vertex is seen where a texel the worn map sees (`inv.valid`, not `excluded`: the glare mask) lies
+/// within `pixels` camera pixels of it, a pixel measured on the skin at that texel (its footprint's longer
+/// axis, 1/σ_min(∂pixel/∂uv): long where the skin is seen obliquely), and at least kVertexReachTexels. The
+/// texels between a contact-boundary vertex and the first seen pixel lie beyond the contact surface, so a
+/// fixed reach in texels leaves such vertices unseen. Per vertex: that reach (the largest of the texels that
+/// see it), NaN where the camera does not see it or it has no chart coordinate.
+std::vector<float> vertex_reach_texels(const InverseMap& inv, const std::vector<std::uint8_t>& excluded, const Chart& chart,
+                                       double pixels);
+
+/// The field at the vertices `reach_texels` says are seen: the bilinear sample (ChartField::sample), else the
+/// nearest defined texel within the vertex's reach plus `extra_mm` (the signal's smoothing: where the signal
+/// stops short of the seen skin, as along the boundary a held baseline's map cannot see, the nearest value
+/// is within the field's own resolution). NaN elsewhere.
+std::vector<float> vertex_values(const ChartField& field, const Chart& chart, const std::vector<float>& reach_texels, double extra_mm);
+
 }  // namespace clearfit
