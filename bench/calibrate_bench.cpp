@@ -16,6 +16,7 @@
 // clearfit's first solve in the process (cold: libmrcal's solver then gets its memory fresh from the kernel,
 // which costs page faults); the later trials are warm. `clearfit calibrate` runs one cold solve, so run
 // single trials with different first seeds for the cold figure.
+#include <clearfit/memory.hpp>
 #include <clearfit/camera/calibrate.hpp>
 
 #include <opencv2/calib3d.hpp>
@@ -246,6 +247,7 @@ Row opencv_row(const std::vector<BoardObservation>& views, const CalibrationGrid
 }  // namespace
 
 int main(int argc, char** argv) {
+  keep_freed_memory();  // as `clearfit calibrate` runs its solve (memory.hpp); mrcal's tool runs as shipped
   const int trials = argc > 1 ? std::atoi(argv[1]) : 5;
   const double noise = argc > 2 ? std::atof(argv[2]) : 0.3;
   const std::string lens = argc > 3 ? argv[3] : "moderate";

@@ -4,6 +4,7 @@
 #include <clearfit/cli/video_views.hpp>
 
 #include <clearfit/atomic_file.hpp>
+#include <clearfit/memory.hpp>
 #include <clearfit/output_folder.hpp>
 #include <clearfit/camera/projection_uncertainty.hpp>
 #include <clearfit/camera/board.hpp>
@@ -299,6 +300,7 @@ Run add_calibrate(CLI::App& app) {
       inputs = {{"images", o->images}};
       if (!views.videos.empty()) inputs["videos"] = views.videos;
     }
+    keep_freed_memory();  // libmrcal's solver allocates afresh every iteration: reuse the pages
     const auto t0 = std::chrono::steady_clock::now();
     const bool refine = o->corners.empty() && !o->no_refine;
     CalibrationOptions first = opt;
