@@ -3,6 +3,7 @@
 #include <clearfit/error.hpp>
 #include <clearfit/fit/assessment_stages.hpp>
 #include <clearfit/format.hpp>
+#include "map_jacobian.hpp"
 
 #include <Eigen/SVD>
 
@@ -74,34 +75,6 @@ ChartField position_sigma(const ChartRaster& raster, const Rigid3& cam_from_part
   }
   return out;
 }
-
-namespace {
-
-Vec2 texel_pixel(const InverseMap& inv, int i, int j) {
-  const auto k = inv.index(i, j);
-  return inv.valid[k] ? Vec2(inv.map_x[k], inv.map_y[k]) : Vec2(kNaN, kNaN);
-}
-
-/// ∂pixel/∂uv (px per mm) at texel (i, j) of the inverse map, by central differences (one-sided at its
-/// edges); nullopt where the texel has no pixel or the Jacobian is singular.
-std::optional<Eigen::Matrix2d> pixel_jacobian(const InverseMap& inv, int i, int j) {
-  auto derivative = [&](int di, int dj) {  // ∂pixel per mm along (di, dj)
-    const bool ahead = i + di < inv.width && j + dj < inv.height, behind = i - di >= 0 && j - dj >= 0;
-    const Vec2 a = ahead ? texel_pixel(inv, i + di, j + dj) : Vec2(kNaN, kNaN);
-    const Vec2 b = behind ? texel_pixel(inv, i - di, j - dj) : Vec2(kNaN, kNaN), c = texel_pixel(inv, i, j);
-    if (a.allFinite() && b.allFinite()) return Vec2((a - b) / (2 * inv.texel_mm));
-    if (a.allFinite()) return Vec2((a - c) / inv.texel_mm);
-    if (b.allFinite()) return Vec2((c - b) / inv.texel_mm);
-    return Vec2(kNaN, kNaN);
-  };
-  if (!texel_pixel(inv, i, j).allFinite()) return std::nullopt;
-  Eigen::Matrix2d J;
-  J.col(0) = derivative(1, 0), J.col(1) = derivative(0, 1);
-  if (!J.allFinite() || std::abs(J.determinant()) < 1e-12) return std::nullopt;
-  return J;
-}
-
-}  // namespace
 
 IntrinsicsTerm intrinsics_term(const InverseMap& inv, const ChartField& y, const ProjectionUncertainty& u, int width, int height) {
   const ChartGrid& grid = y.grid;

@@ -3,6 +3,7 @@
 #include <clearfit/fit/blanching.hpp>
 #include <clearfit/fit/srgb.hpp>
 #include <clearfit/format.hpp>
+#include "map_jacobian.hpp"
 #include <cmath>
 #include <limits>
 #include <opencv2/imgproc.hpp>
@@ -30,16 +31,63 @@ double median(std::vector<double> v) {
   return *mid;
 }
 
-/// Camera pixels per texel edge (median over the grid), from the inverse map's steps.
-double pixels_per_texel(const InverseMap& inv) {
-  std::vector<double> steps;
-  for (int j = 0; j < inv.height; j += 4)
-    for (int i = 0; i + 1 < inv.width; i += 4) {
-      const auto a = inv.index(i, j), b = inv.index(i + 1, j);
-      if (inv.valid[a] && inv.valid[b]) steps.push_back(std::hypot(inv.map_x[b] - inv.map_x[a], inv.map_y[b] - inv.map_y[a]));
+/// Chart texels per camera pixel at each texel of a map: 1 / |det ∂pixel/∂texel| (central differences
+/// of the map, one-sided at its edges), at least 1 (a texel coarser than the pixels samples them apart);
+/// where no neighbour is valid, the median over the map. Bilinear resampling gives every texel of a
+/// pixel's footprint that pixel's noise: the more texels a pixel spans (the contact surface seen
+/// obliquely, the map steep), the fewer independent samples a smoothing kernel holds.
+std::vector<float> texels_per_pixel(const InverseMap& inv) {
+  std::vector<float> out(inv.valid.size(), kNaN);
+  std::vector<double> known;
+  for (int j = 0; j < inv.height; ++j)
+    for (int i = 0; i < inv.width; ++i) {
+      if (!inv.valid[inv.index(i, j)]) continue;
+      const auto J = pixel_jacobian(inv, i, j);  // px per mm
+      if (!J) continue;
+      const double det = std::abs(J->determinant()) * inv.texel_mm * inv.texel_mm;  // px² per texel
+      out[inv.index(i, j)] = static_cast<float>(std::max(1.0, 1.0 / det));
+      known.push_back(out[inv.index(i, j)]);
     }
-  const double m = median(std::move(steps));
-  return std::isfinite(m) && m > 0 ? m : 1.0;
+  const double m = median(std::move(known));
+  for (std::size_t k = 0; k < out.size(); ++k)
+    if (inv.valid[k] && !std::isfinite(out[k])) out[k] = std::isfinite(m) ? static_cast<float>(m) : 1.f;
+  return out;
+}
+
+/// σ of the smoothed feature per texel. smooth_field is a normalised convolution: y_k = Σ g_ki x_i / Σ g_ki
+/// over the seen texels i, so Var(y_k) = Σ g_ki² var_i n_i / (Σ g_ki)², with var_i the texel's own variance
+/// and n_i its texels per camera pixel (texels_per_pixel: the n texels of one pixel carry one noise). Where
+/// the kernel holds fewer seen texels (the edge of the seen skin, a strip between a mask and the rim) or
+/// fewer pixels (an oblique view), the σ grows. It is at most the local variance itself (a kernel
+/// narrower than a pixel averages nothing). `var`: var_i; `var_n`: var_i·n_i; NaN where unseen.
+ChartField smoothed_sigma(const ChartField& var, const ChartField& var_n, double sigma_mm) {
+  const ChartGrid& g = var.grid;
+  ChartField out{g, std::vector<float>(g.size(), kNaN)};
+  if (!(sigma_mm > 0)) {
+    for (std::size_t k = 0; k < g.size(); ++k) out.value[k] = std::sqrt(var.value[k]);
+    return out;
+  }
+  const double s = sigma_mm / g.texel_mm;
+  const cv::Mat kernel = cv::getGaussianKernel(cvRound(s * 4 * 2 + 1) | 1, s, CV_32F);  // GaussianBlur's own (smooth_field)
+  const cv::Mat kernel2 = kernel.mul(kernel);
+  cv::Mat seen(g.height, g.width, CV_32F, cv::Scalar(0)), vn(seen.size(), CV_32F, cv::Scalar(0)), v(seen.size(), CV_32F, cv::Scalar(0));
+  for (int j = 0; j < g.height; ++j)
+    for (int i = 0; i < g.width; ++i)
+      if (const auto k = g.index(i, j); std::isfinite(var.value[k]) && std::isfinite(var_n.value[k]))
+        seen.at<float>(j, i) = 1, v.at<float>(j, i) = var.value[k], vn.at<float>(j, i) = var_n.value[k];
+  cv::Mat weight, sum2, local;
+  cv::sepFilter2D(seen, weight, CV_32F, kernel, kernel, cv::Point(-1, -1), 0, cv::BORDER_CONSTANT);
+  cv::sepFilter2D(vn, sum2, CV_32F, kernel2, kernel2, cv::Point(-1, -1), 0, cv::BORDER_CONSTANT);
+  cv::sepFilter2D(v, local, CV_32F, kernel, kernel, cv::Point(-1, -1), 0, cv::BORDER_CONSTANT);
+  for (int j = 0; j < g.height; ++j)
+    for (int i = 0; i < g.width; ++i) {
+      const auto k = g.index(i, j);
+      const double w = weight.at<float>(j, i);
+      if (!seen.at<float>(j, i) || !(w > 1e-6)) continue;
+      const double smoothed = sum2.at<float>(j, i) / (w * w), ceiling = local.at<float>(j, i) / w;
+      out.value[k] = static_cast<float>(std::sqrt(std::max(0.0, std::min(smoothed, ceiling))));
+    }
+  return out;
 }
 
 /// Robust spread of the smoothed feature over the seen texels (the unpressed majority: 3-MAD
@@ -253,7 +301,8 @@ BlanchingSignal compute_blanching(const PhaseAverage& baseline, const PhaseAvera
   worn_var.mean = worn.variance;
   const ChartField vb = resample_to_chart(base_var, base_inv), vw = resample_to_chart(worn_var, inverse);
 
-  ChartField raw = empty_field(g), sigma = empty_field(g);
+  ChartField raw = empty_field(g), var = empty_field(g), var_n = empty_field(g);
+  const std::vector<float> n_worn = texels_per_pixel(inverse), n_base = texels_per_pixel(base_inv);
   s.plain_difference = empty_field(g);
   constexpr float kDark = 1e-4f;  // linear green below this carries no usable ratio
   for (std::size_t k = 0; k < g.size(); ++k) {
@@ -268,7 +317,9 @@ BlanchingSignal compute_blanching(const PhaseAverage& baseline, const PhaseAvera
       }
       raw.value[k] -= options.log_transmittance_ratio[k];
     }
-    sigma.value[k] = std::sqrt(std::max(0.f, vw.value[k]) / (G * G) + std::max(0.f, vb.value[k]) / (G0 * G0));
+    const float rel_w = std::max(0.f, vw.value[k]) / (G * G), rel_b = std::max(0.f, vb.value[k]) / (G0 * G0);
+    var.value[k] = rel_w + rel_b;
+    var_n.value[k] = rel_w * n_worn[k] + rel_b * n_base[k];
     s.plain_difference.value[k] = static_cast<float>(255.0 * (srgb::from_linear(G) - srgb::from_linear(G0)));
     ++s.texels_seen;
   }
@@ -293,16 +344,11 @@ BlanchingSignal compute_blanching(const PhaseAverage& baseline, const PhaseAvera
   }
   // The reference on the feature itself (after smoothing, which is not linear when ratio_of_smoothed).
   apply_reference(s, options);
-  // Noise after smoothing: independent camera pixels inside the kernel (4π σ_px²).
-  const double sigma_px = options.smoothing_mm / g.texel_mm * pixels_per_texel(inverse);
-  const float reduction = static_cast<float>(1.0 / std::sqrt(std::max(1.0, 4 * M_PI * sigma_px * sigma_px)));
-  s.sigma_y = smooth_field(sigma, options.smoothing_mm);
+  // Noise after smoothing: the independent camera pixels inside each texel's kernel (smoothed_sigma).
+  s.sigma_y = smoothed_sigma(var, var_n, options.smoothing_mm);
   std::vector<double> sig;
-  for (auto& v : s.sigma_y.value)
-    if (std::isfinite(v)) {
-      v *= reduction;
-      sig.push_back(v);
-    }
+  for (float v : s.sigma_y.value)
+    if (std::isfinite(v)) sig.push_back(v);
   s.noise_sigma = s.temporal_noise_sigma = median(std::move(sig));
   if (options.spatial_noise) add_spatial_noise(s);
   if (options.local_spatial_noise) add_local_spatial_noise(s, options.local_noise_window_mm);

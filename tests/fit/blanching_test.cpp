@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
+#include <array>
 #include <cmath>
 #include <random>
 
@@ -133,6 +134,57 @@ TEST(Blanching, LocalSpatialNoiseGrowsWhereTheTextureDoesNotCancelAndNotOnAPress
   bad.local_spatial_noise = true;
   bad.local_noise_window_mm = 0;
   EXPECT_THROW(compute_blanching(average_of(skin, 1e-3), average_of(worn, 1e-3), inv, bad), std::invalid_argument);
+}
+
+TEST(Blanching, SigmaHoldsAtTheEdgeOfTheSeenSkinAndWhereTheMapIsSteep) {
+  // Independent pixel noise (0.1 % of the green in each phase, declared in the variances), nothing
+  // pressed, against the spread of y over 200 draws, pooled over three texels (20 apart, 4 kernel σ) in
+  // each of: the seen skin inside (one texel a pixel), a strip 3 texels high between masked texels (an
+  // edge on both sides: the smoothing kernel holds a tenth of its texels) and a map 3 texels a camera
+  // pixel along u (the contact surface seen obliquely: a kernel holds a third of the pixels).
+  InverseMap inv = identity_map();
+  for (int j = 0; j < kH; ++j)
+    for (int i = 160; i < kW; ++i) inv.map_x[inv.index(i, j)] = 160.f + static_cast<float>(i - 160) / 3;
+  BlanchingOptions o;
+  o.smoothing_mm = 0.5;
+  o.excluded.assign(kW * kH, 0);
+  for (int j = 0; j < kH; ++j)
+    for (int i = 0; i < 80; ++i) o.excluded[inv.index(i, j)] = j < 59 || j > 61;
+  const std::array<std::array<std::pair<int, int>, 3>, 3> at{{{{{100, 30}, {120, 60}, {140, 90}}},
+                                                               {{{20, 60}, {40, 60}, {60, 60}}},
+                                                               {{{185, 30}, {200, 60}, {215, 90}}}}};
+  const char* names[] = {"inside", "strip", "steep"};
+  for (bool ratio : {false, true}) {
+    o.ratio_of_smoothed = ratio;
+    constexpr int kDraws = 200;
+    constexpr double kNoise = 1e-3;
+    std::mt19937 rng(7);
+    std::normal_distribution<float> n(0, static_cast<float>(kNoise));
+    double sum[3][3] = {}, sum2[3][3] = {};
+    BlanchingSignal s;
+    for (int d = 0; d < kDraws; ++d) {
+      cv::Mat base(kH, kW, CV_32F), worn(kH, kW, CV_32F);
+      for (int j = 0; j < kH; ++j)
+        for (int i = 0; i < kW; ++i) base.at<float>(j, i) = 0.3f * (1 + n(rng)), worn.at<float>(j, i) = 0.3f * (1 + n(rng));
+      s = compute_blanching(average_of(base, kNoise), average_of(worn, kNoise), inv, o);
+      for (int r = 0; r < 3; ++r)
+        for (int t = 0; t < 3; ++t) {
+          const double y = s.y.value[inv.index(at[r][t].first, at[r][t].second)];
+          sum[r][t] += y, sum2[r][t] += y * y;
+        }
+    }
+    for (int r = 0; r < 3; ++r) {
+      double spread2 = 0, sigma2 = 0;
+      for (int t = 0; t < 3; ++t) {
+        const double m = sum[r][t] / kDraws, sigma = s.sigma_y.value[inv.index(at[r][t].first, at[r][t].second)];
+        spread2 += sum2[r][t] / kDraws - m * m, sigma2 += sigma * sigma;
+      }
+      const double ratio_to_spread = std::sqrt(sigma2 / spread2);
+      std::printf("%s%s: sigma_y %.6f, spread of %d draws %.6f (ratio %.3f)\n", ratio ? "ratio of smoothed, " : "", names[r],
+                  std::sqrt(sigma2 / 3), kDraws, std::sqrt(spread2 / 3), ratio_to_spread);
+      EXPECT_NEAR(ratio_to_spread, 1.0, 0.12) << names[r];
+    }
+  }
 }
 
 }  // namespace

@@ -72,7 +72,7 @@ struct BlanchingOptions {
 
 struct BlanchingSignal {
   ChartField y;             ///< the feature, smoothed; NaN where unseen
-  ChartField sigma_y;       ///< 1-σ noise of y per texel (after smoothing)
+  ChartField sigma_y;       ///< 1-σ noise of y per texel: over the camera pixels its kernel holds on the seen skin
   ChartField plain_difference;  ///< study's difference of averages, 8-bit green code units
   ChartField worn_green, baseline_green;  ///< linear green averages on the chart (unsmoothed)
   double reference_log_ratio = 0;  ///< ln(G_ref / G_ref0)
