@@ -112,6 +112,7 @@ Run add_assess(CLI::App& app) {
                    {"glare_margin_px", sc.assess.glare.options.margin_px},
                    {"phase_registration", sc.assess.phase_registration.options.enabled},
                    {"phase_registration_smoothing_mm", sc.assess.phase_registration.options.smoothing_mm},
+                   {"outline", sc.assess.outline.options.enabled},
                    {"exposure_normalisation", sc.assess.normalise_exposure},
                    {"timeseries", sc.assess.timeseries.options.enabled},
                    {"timeseries_cell_px", sc.assess.timeseries.options.cell_px},

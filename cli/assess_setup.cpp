@@ -113,6 +113,7 @@ std::unique_ptr<Prepared> prepare(AssessOpts& o) {
   ao.min_hotspot_area_mm2 = as.min_hotspot_area_mm2;
   ao.glare = as.glare.options;
   ao.phase_registration = as.phase_registration.options;
+  ao.outline = as.outline.options;
   ao.vignetting = as.vignetting.options;
   ao.gap = sc.baseline.search;
   ao.timeseries = as.timeseries.options;

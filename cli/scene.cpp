@@ -309,6 +309,25 @@ void PhaseRegistrationSection::validate() const {
   }
 }
 
+void OutlineSection::bind(SceneFields& f) {
+  f.key("enabled", options.enabled, "--no-outline",
+        "Do not place the worn capture by the contact surface's outline (a move of the camera between the phases' first "
+        "frames is then followed as if the skin had slid)");
+  f.key("band_px", options.band_px);
+  f.key("smoothing_px", options.smoothing_px);
+  f.key("max_sigma_px", options.max_sigma_px);
+  f.key("min_contrast", options.min_contrast);
+  f.key("max_shift_px", options.max_shift_px);
+}
+
+void OutlineSection::validate() const {
+  try {
+    options.validate();
+  } catch (const std::invalid_argument& e) {
+    throw SceneRuleError("", e.what());
+  }
+}
+
 void VignettingSection::bind(SceneFields& f) {
   f.key("enabled", options.enabled, "--no-vignetting",
         "Do not estimate the image's fall-off when the phases see the skin at different pixels (a held or absent baseline)");
@@ -346,6 +365,7 @@ void TimeSeriesSection::validate() const {
 void AssessSection::bind(SceneFields& f) {
   f.section("glare", glare);
   f.section("phase_registration", phase_registration);
+  f.section("outline", outline);
   f.section("vignetting", vignetting);
   f.section("timeseries", timeseries);
   f.key("normalise_exposure", normalise_exposure, "--no-exposure-normalisation",
@@ -385,6 +405,11 @@ void AssessSection::validate() const {
     phase_registration.validate();
   } catch (const SceneRuleError& e) {
     throw SceneRuleError("phase_registration", e.what());
+  }
+  try {
+    outline.validate();
+  } catch (const SceneRuleError& e) {
+    throw SceneRuleError("outline", e.what());
   }
   try {
     vignetting.validate();

@@ -66,6 +66,14 @@ cv::Mat seen_pixels(const RefractionMap& map, const cv::Rect& roi) {
   return seen;
 }
 
+/// The share of each pixel of `roi` that sees the skin (CV_32F; RefractionMap::seen_share).
+cv::Mat seen_shares(const RefractionMap& map, const cv::Rect& roi) {
+  cv::Mat1f seen(roi.size(), 0.f);
+  for (int y = 0; y < roi.height; ++y)
+    for (int x = 0; x < roi.width; ++x) seen(y, x) = map.seen_share(map.index(roi.x + x, roi.y + y));
+  return seen;
+}
+
 /// The fall-off between phases seen at different pixels: a refused estimate is worth a warning.
 void warn_vignetting(const VignettingEstimate& v, std::vector<std::string>& warnings) {
   if (!v.estimated && v.problem.find("not vignetting") != std::string::npos)
@@ -264,6 +272,39 @@ void refuse_unusable_exposure(const Phases& p, const Assessment& a, const Assess
   check_exposure(p.worn_avg, a.worn.source, "worn", o, o.glare.max_fraction);
 }
 
+/// Stage 2a: where the camera stood at each capture's first frame against the pose, from the contact
+/// surface's outline in each average (outline.hpp); the worn capture is then read where its outline says
+/// the part is. Each average's content at frame-0 pixel x lies at x + residual_shift_px, so the outline's
+/// shift less residual_shift_px is where that first frame stood against the map. The worn capture is placed
+/// by its own outline, not by its difference to the baseline's: a held baseline's outline on the simulator
+/// lies 0.2-0.65 px off its map's (rays beside the contact face's edge that miss the offset skin), and the
+/// baseline's own offset is the phase registration's to follow. `baseline_map`: the not-worn capture's own
+/// map (held or absent), reported only.
+void measure_phase_move(const AssessmentScene& scene, const RefractionMap& baseline_map, Phases& p, const AssessmentOptions& o,
+                        Assessment& a) {
+  PhaseMoveReport& r = a.phase_move;
+  if (!o.outline.enabled) return;
+  const OutlineFit w = locate_outline(p.worn_avg.mean, seen_shares(*scene.forward, p.worn_avg.roi), {}, o.outline);
+  const OutlineFit b = locate_outline(p.base_avg.mean, seen_shares(baseline_map, p.base_avg.roi), {}, o.outline);
+  r.contrast = w.contrast;
+  if (b.found) r.baseline_px = b.shift_px - p.base_avg.residual_shift_px;
+  if (!w.found) {
+    r.problem = "worn capture: " + w.problem;
+    // An outline that is there but placed unsurely is worth saying; a capture without one (the skin beside the
+    // part as bright as through it) is not.
+    if (w.contrast >= o.outline.min_contrast)
+      a.warnings.push_back("the worn capture was not placed by the contact surface's outline: " + w.problem +
+                           "; a move of the camera since the not-worn capture is followed as if the skin had slid");
+    return;
+  }
+  r.measured = true;
+  r.worn_px = w.shift_px - p.worn_avg.residual_shift_px;
+  r.move_px = r.worn_px;
+  r.sigma_px = w.sigma_px;
+  p.worn_avg.residual_shift_px += r.move_px;
+  r.applied = true;
+}
+
 /// How the baseline is read on the chart: its own geometry's map and inverse map (held off the
 /// skin, or no part), and the inverse map displaced by the phase registration.
 struct BaselineView {
@@ -276,13 +317,14 @@ struct BaselineView {
 
 /// Stage 2: the baseline's own geometry (its map at the given or estimated gap) and the phase
 /// registration; fills a.baseline_geometry, a.phase_registration and their warnings.
-void register_baseline(const AssessmentScene& scene, bool own_geometry, const Phases& p, const AssessmentOptions& o, Assessment& a,
+void register_baseline(const AssessmentScene& scene, bool own_geometry, Phases& p, const AssessmentOptions& o, Assessment& a,
                        BaselineView& b) {
   const InverseMap& inv = *scene.inverse;
   if (own_geometry) {
     b.map = baseline_geometry(scene, p.base_avg, p.worn_avg, a, o);
     b.inverse = compute_inverse_map(*b.map, scene.inverse_options, scene.contact);
   }
+  measure_phase_move(scene, b.map ? *b.map : *scene.forward, p, o, a);
   // Skin that slid or bulged between the phases: the baseline is read where its skin went
   // (phase_registration.hpp), from whichever inverse map reads it (its own geometry's or the worn one).
   const InverseMap& from = b.inverse ? *b.inverse : inv;

@@ -89,6 +89,7 @@ RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel&
   const MapRun run{scene, options, tracer, *rays, cam_from_part.inverse(), box, map};
   if (options.mode == MapOptions::Mode::exact) trace_exact(run);
   else refine_quadtree(run);
+  measure_seen_fraction(run);
   st.trace_ms = ms_since(t0) - st.unproject_ms;
   count_statuses(map);
   st.total_ms = ms_since(t_start);

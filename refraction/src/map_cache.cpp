@@ -14,8 +14,9 @@ constexpr char kMagic[8] = {'C', 'F', 'M', 'A', 'P', '0', '0', '1'};
 // (2: the adaptive mode's boundary resolver; 3: four checks per cell and the
 // parent's estimate; 4: checks off node rows in short cells, parents far above
 // the tolerance not trusted; 5: four drawn checks more per cell, one entry
-// face per accepted cell with flat normals), so older cached maps are not reused.
-constexpr int kMapAlgorithm = 5;
+// face per accepted cell with flat normals; 6: the seen fraction of the outline's pixels), so older
+// cached maps are not reused.
+constexpr int kMapAlgorithm = 6;
 
 struct Fnv {
   std::uint64_t h = 14695981039346656037ull;
@@ -49,6 +50,7 @@ void for_each_array(Map& m, F&& f) {
   f(m.incidence_deg.data(), sizeof(float), m.incidence_deg.size());
   f(m.contact_deg.data(), sizeof(float), m.contact_deg.size());
   f(m.transmittance.data(), sizeof(float), m.transmittance.size());
+  f(m.seen_fraction.data(), sizeof(float), m.seen_fraction.size());
 }
 
 }  // namespace
@@ -90,7 +92,7 @@ std::optional<RefractionMap> load_cached_map(const std::filesystem::path& dir, s
   m.height = h;
   const std::size_t n = static_cast<std::size_t>(w) * h;
   m.status.resize(n), m.skin_point.resize(n), m.face.resize(n), m.bary.resize(n), m.chart_uv.resize(n);
-  m.incidence_deg.resize(n), m.contact_deg.resize(n), m.transmittance.resize(n);
+  m.incidence_deg.resize(n), m.contact_deg.resize(n), m.transmittance.resize(n), m.seen_fraction.resize(n);
   for_each_array(m, [&](void* p, std::size_t size, std::size_t count) {
     in.read(static_cast<char*>(p), static_cast<std::streamsize>(size * count));
   });
@@ -117,6 +119,7 @@ std::optional<RefractionMap> load_cached_map(const std::filesystem::path& dir, s
 }
 
 void store_cached_map(const std::filesystem::path& dir, std::uint64_t key, const RefractionMap& map) {
+  if (map.seen_fraction.size() != map.status.size()) return;  // not a whole map of compute_refraction_map's
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) throw InputError(dir.string(), "", "cannot create the cache folder: " + ec.message(), "use --cache DIR or --no-cache");

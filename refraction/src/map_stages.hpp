@@ -49,6 +49,8 @@ class CameraRays {
   void ensure(std::span<const std::uint32_t> pixels);
   /// The same for every pixel of rows y0..y1, columns x0..x1 (inclusive).
   void ensure(int x0, int y0, int x1, int y1);
+  /// Unit rays of arbitrary (sub-pixel) points, not cached; NaN where the lens cannot unproject.
+  void unproject(std::span<const Vec2> points, std::span<Vec3> rays) const { unprojector_.unproject(points, rays); }
   /// Unit ray of pixel index p (zero if the lens cannot unproject it); p must be ensured.
   const Vec3& ray(std::uint32_t p) const { return rays_[p]; }
 
@@ -161,5 +163,11 @@ void trace_exact(const MapRun& run);
 /// Grid and adaptive modes: the pixels outside the bound reset, the rest
 /// traced or interpolated by the quadtree (quadtree.hpp).
 void refine_quadtree(const MapRun& run);
+
+// ---- 5. outline -------------------------------------------------------------
+
+/// map.seen_fraction: 0 / 1 from the status, and on the outline (a pixel whose 8 neighbours do not all
+/// share its status) the share of a 4 × 4 grid of rays over the pixel's square that sees the skin.
+void measure_seen_fraction(const MapRun& run);
 
 }  // namespace clearfit::refraction_detail

@@ -68,6 +68,20 @@ json glare_json(const GlareMask& g, const Coverage& cov) {
           {"static_sigma", num(g.static_sigma)}};
 }
 
+json phase_move_json(const PhaseMoveReport& m) {
+  auto vec = [](const Vec2& v) { return json{num(v.x()), num(v.y())}; };
+  return {{"measured", m.measured},
+          {"applied", m.applied},
+          {"move_px", m.measured ? vec(m.move_px) : json(nullptr)},
+          {"sigma_px", m.measured ? vec(m.sigma_px) : json(nullptr)},
+          {"worn_outline_px", m.measured ? vec(m.worn_px) : json(nullptr)},
+          {"baseline_outline_px", m.baseline_px ? vec(*m.baseline_px) : json(nullptr)},
+          {"outline_contrast", num(m.contrast)},
+          {"problem", m.problem.empty() ? json(nullptr) : json(m.problem)},
+          {"meaning", "the worn capture's first frame against the pose, from the contact surface's outline in its average "
+                      "(the skin's texture cannot tell a camera move from a slide); the worn capture is read displaced by it"}};
+}
+
 json baseline_geometry_json(const BaselineGeometryReport& b) {
   json j = {{"part", to_string(b.part)},
             {"gap_mm", num(b.gap_mm)},
@@ -400,6 +414,7 @@ json assessment_report_json(const Assessment& a, const AssessmentScene& scene, c
       {"captures", {{"baseline", phase_json(a.baseline)}, {"worn", phase_json(a.worn)}, {"split", split_json(a)}}},
       {"glare", glare_json(a.glare, a.coverage)},
       {"baseline_geometry", baseline_geometry_json(a.baseline_geometry)},
+      {"phase_move", phase_move_json(a.phase_move)},
       {"phase_registration", phase_registration_json(a.phase_registration)},
       {"signal", signal_json(a)},
       {"calibration",

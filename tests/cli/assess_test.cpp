@@ -312,7 +312,9 @@ TEST_F(AssessCli, IntrinsicsUncertaintyAddsItsTermWhereThePressureIsSteep) {
   for (const std::string run : {"plain", "u", "x", "y"}) {
     scene(two_captures(), calibration_any,
           (work() / ("camera_" + run + ".cameramodel")).string());
-    const RunResult r = assess({"--out", run});
+    // The outline would find the moved principal point as a move of the part in the image and undo it: the
+    // finite difference is the map's sensitivity to the intrinsics with the worn capture held where it is.
+    const RunResult r = assess({"--out", run, "--no-outline"});
     ASSERT_EQ(r.exit_code, 0) << run << "\n" << r;
     p[run] = npy::read_float32(work() / run / "pressure.npy");
     ps[run] = npy::read_float32(work() / run / "pressure_sigma.npy");

@@ -325,6 +325,14 @@ struct PhaseRegistrationSection {
   void validate() const;
 };
 
+/// `assess.outline:` the camera's move between the phases from the contact surface's outline
+/// (fit/outline.hpp); its defaults and rules are OutlineOptions'.
+struct OutlineSection {
+  OutlineOptions options;
+  void bind(SceneFields& f);
+  void validate() const;
+};
+
 /// `assess.vignetting:` the fall-off between phases seen at different pixels (a held or absent
 /// baseline; fit/vignetting.hpp); its defaults and rules are VignettingOptions'.
 struct VignettingSection {
@@ -343,6 +351,7 @@ struct TimeSeriesSection {
 struct AssessSection {
   GlareSection glare;
   PhaseRegistrationSection phase_registration;
+  OutlineSection outline;
   VignettingSection vignetting;
   TimeSeriesSection timeseries;
   bool normalise_exposure = AssessmentOptions{}.normalise_gains;  ///< per-chunk exposure / white-balance / flicker gains

@@ -12,6 +12,7 @@
 #include <clearfit/fit/capture.hpp>
 #include <clearfit/fit/glare.hpp>
 #include <clearfit/fit/hotspots.hpp>
+#include <clearfit/fit/outline.hpp>
 #include <clearfit/fit/phase_registration.hpp>
 #include <clearfit/fit/pressure_model.hpp>
 #include <clearfit/fit/timeseries.hpp>
@@ -41,6 +42,7 @@ struct AssessmentOptions {
   GlareOptions glare;                ///< specular highlights masked out of the signal (glare.hpp)
   bool normalise_gains = true;       ///< divide each chunk by its exposure / white-balance / flicker gain (photometric.hpp)
   GapSearchOptions gap;              ///< estimating the not-worn capture's gap (baseline_gap.hpp)
+  OutlineOptions outline;            ///< the camera's move between the phases, from the part's outline (outline.hpp)
   PhaseRegistrationOptions phase_registration;  ///< skin that slid or bulged between the phases (phase_registration.hpp)
   VignettingOptions vignetting;      ///< the fall-off between phases seen at different pixels (vignetting.hpp)
   std::vector<double> thresholds_kpa{4.3, 5.5};  ///< capillary closing, the study's blanching onset
@@ -107,6 +109,18 @@ struct BaselineGeometryReport {
   VignettingEstimate vignetting;        ///< the fall-off divided out of the comparison (own geometry only)
 };
 
+/// The camera's move since the pose, from the contact surface's outline (outline.hpp): the worn average's
+/// outline against the map's, and the worn capture read displaced by it.
+struct PhaseMoveReport {
+  bool measured = false;             ///< the worn capture's outline found
+  bool applied = false;              ///< the worn capture was read displaced by move_px
+  std::optional<Vec2> baseline_px;   ///< the not-worn capture's outline against its map's (reported only; not when not found)
+  Vec2 worn_px = Vec2::Zero();       ///< the worn capture's first frame's outline against the map's
+  Vec2 move_px = Vec2::Zero(), sigma_px = Vec2::Zero();     ///< the displacement applied, 1-σ per axis
+  double contrast = 0;               ///< the step across the worn capture's outline (relative)
+  std::string problem;               ///< why it was not measured (empty when measured)
+};
+
 /// The camera model's projection uncertainty over the seen contact surface (the texels where the signal
 /// is defined): the largest σ_q (px) and the camera pixel it is at, the share of the seen texels above
 /// the threshold, and the largest skin position σ (mm) it gives. Empty (texels 0) without the term.
@@ -135,6 +149,7 @@ struct DetectionLimit {
 struct Assessment {
   PhaseReport baseline, worn;
   BaselineGeometryReport baseline_geometry;
+  PhaseMoveReport phase_move;
   std::optional<PhaseSplit> split;
   BlanchingSignal signal;
   ChartRaster raster;

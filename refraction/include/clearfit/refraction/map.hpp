@@ -138,9 +138,17 @@ struct RefractionMap {
   PixelArray<float> incidence_deg;          ///< angle of incidence at entry
   PixelArray<float> contact_deg;            ///< angle of the refracted ray to the contact face normal
   PixelArray<float> transmittance;          ///< Fresnel T entry × T contact (unpolarised)
+  /// The share of the pixel's footprint (4 × 4 rays over its square) that sees the skin: the outline of
+  /// the seen region at sub-pixel precision (a status alone places a straight edge only to ±0.5 px).
+  /// 0 or 1 away from the outline; empty when the map was made without it (then read the status).
+  PixelArray<float> seen_fraction;
   MapStats stats;
 
   std::size_t index(int x, int y) const { return static_cast<std::size_t>(y) * width + x; }
+  /// seen_fraction at pixel index k, or 1 / 0 from the status when the map has none.
+  float seen_share(std::size_t k) const {
+    return seen_fraction.empty() ? (status[k] == PixelStatus::valid ? 1.f : 0.f) : seen_fraction[k];
+  }
 };
 
 /// One traced ray (the per-pixel result, also for callers with their own rays).
