@@ -60,20 +60,27 @@ try {
   await page.goto(pathToFileURL(htmlPath).href, { waitUntil: 'load', timeout });
   measured.page_load_ms = Date.now() - t0;
 
-  // A PNG's pixels (RGBA rows), decoded in the page through a canvas.
-  const pixels = (png) => page.evaluate(async (b64) => {
-    const img = new Image();
-    img.src = 'data:image/png;base64,' + b64;
-    await img.decode();
-    const c = document.createElement('canvas');
-    c.width = img.width; c.height = img.height;
-    const g = c.getContext('2d');
-    g.drawImage(img, 0, 0);
-    return { width: c.width, height: c.height, data: Array.from(g.getImageData(0, 0, c.width, c.height).data) };
-  }, png.toString('base64'));
-  // Luminance spread and share of pixels unlike the background (top-left pixel) of a PNG.
-  const pixelStats = async (png) => {
-    const d = (await pixels(png)).data;
+  // A PNG's pixels (RGBA rows), decoded in the page through a canvas. They come back as one base64 string:
+  // returned as an array of numbers (2 million for a 1060 x 481 view) they took 20-30 s to serialise.
+  const pixels = async (png) => {
+    const img = await page.evaluate(async (b64) => {
+      const img = new Image();
+      img.src = 'data:image/png;base64,' + b64;
+      await img.decode();
+      const c = document.createElement('canvas');
+      c.width = img.width; c.height = img.height;
+      const g = c.getContext('2d');
+      g.drawImage(img, 0, 0);
+      const bytes = g.getImageData(0, 0, c.width, c.height).data;
+      let binary = '';
+      for (let i = 0; i < bytes.length; i += 0x8000) binary += String.fromCharCode.apply(null, bytes.subarray(i, i + 0x8000));
+      return { width: c.width, height: c.height, rgba: btoa(binary) };
+    }, png.toString('base64'));
+    return { width: img.width, height: img.height, data: new Uint8Array(Buffer.from(img.rgba, 'base64')) };
+  };
+  // Luminance spread and share of pixels unlike the background (top-left pixel) of decoded pixels.
+  const pixelStats = (img) => {
+    const d = img.data;
     const bg = [d[0], d[1], d[2]];
     let n = 0, sum = 0, sum2 = 0, differ = 0, colourful = 0;
     for (let i = 0; i < d.length; i += 4) {
@@ -104,7 +111,15 @@ try {
     return { lo: Number(bar.dataset.lo), hi: Number(bar.dataset.hi), samples };
   }, key);
   // The value of the colour-bar colour nearest to rgb, and how far (RGB distance) the colour is from it.
+  // Remembered per bar and colour: a view has a few thousand distinct colours in half a million pixels.
+  const onRampSeen = new WeakMap();
   const onRamp = (bar, rgb) => {
+    if (!onRampSeen.has(bar)) onRampSeen.set(bar, new Map());
+    const seen = onRampSeen.get(bar), colour = `${rgb[0]},${rgb[1]},${rgb[2]}`;
+    if (!seen.has(colour)) seen.set(colour, nearestOnRamp(bar, rgb));
+    return seen.get(colour);
+  };
+  const nearestOnRamp = (bar, rgb) => {
     let best = Infinity, index = 0;
     bar.samples.forEach((c, i) => {
       const d = (c[0] - rgb[0]) ** 2 + (c[1] - rgb[1]) ** 2 + (c[2] - rgb[2]) ** 2;
@@ -116,10 +131,9 @@ try {
   const vertexRows = embeddedVertices ? new Float32Array(new Uint8Array(Buffer.from(embeddedVertices.rows, 'base64')).buffer) : null;
   const calibratedReport = Boolean(report.calibration && report.calibration.pressure);
 
-  async function checkColours(key, png) {
+  async function checkColours(key, img) {
     const bar = await ramp(key);
     if (!bar) { fail(`view ${key}: no colour bar`); return; }
-    const img = await pixels(png);
     const rgbAt = (x, y) => { const i = 4 * (Math.round(y) * img.width + Math.round(x)); return img.data.slice(i, i + 3); };
     // The top of the range the seen vertices reach (kPa in the pressure view, else the signal), within the bar.
     const column = key === 'pressure' ? 3 : 5;
@@ -201,9 +215,10 @@ try {
     const png = await page.locator('#viewer').screenshot();
     shots[key] = png.toString('base64');
     if (shotDir) { mkdirSync(shotDir, { recursive: true }); writeFileSync(join(shotDir, `view_${key}.png`), png); }
-    const stats = await pixelStats(png);
+    const img = await pixels(png);
+    const stats = pixelStats(img);
     measured.views[key] = { load_ms: Date.now() - t1, model_visible: state.visible, ...stats };
-    await checkColours(key, png);
+    await checkColours(key, img);
     // Not blank: the part stands out from the background, and the heatmap's
     // colours (saturated, unlike the grey no-data colour and the background) show.
     if (!(stats.luminance_std > 8 && stats.foreground_fraction > 0.02 && stats.colourful_fraction > 0.01))
