@@ -80,11 +80,14 @@ std::vector<BandPixel> band_of(const cv::Mat& average, const cv::Mat1f& seen_sha
   return band;
 }
 
-/// θ = (t_x, t_y, ω, a, b): J ≈ a·φ + (b·φ)·S(p − d), φ = (1, u, v, u², uv, v²) (the illumination's fall-off
-/// is quadratic: an affine a and b leave a gradient across the outline at the band's far ends, opposite at
-/// either end), d = t + ω·L·(−v, u) the displacement at p (a small rotation ω about the seen region's
-/// centroid; L the normalising length).
-constexpr int kTerms = 6, kParams = 3 + 2 * kTerms;
+/// θ = (t_x, t_y, ω, e_x, e_y, a, b): J ≈ a·φ + (b·φ)·S(p − d), φ = (1, u, v, u², uv, v²) (the illumination's
+/// fall-off is quadratic: an affine a and b leave a gradient across the outline at the band's far ends, opposite
+/// at either end), d = t + ω·L·(−v, u) + L·(e_x u, e_y v) the displacement at p (a small rotation ω and stretch
+/// e about the seen region's centroid; L the normalising length). The stretch is fitted so that an outline seen
+/// larger or smaller than the map's (a distance, or edge pixels drawn whole where the map sees a share of them)
+/// does not read as a shift: with a shift alone the robust weights settled on one side's edge (on a simulated
+/// slab whose top and bottom edge rows the map sees at 3/4 and the render draws whole, 0.17 px towards the top).
+constexpr int kTerms = 6, kMotion = 5, kParams = kMotion + 2 * kTerms;
 using Terms = Eigen::Matrix<double, kTerms, 1>;
 Terms terms(double u, double v) { return (Terms() << 1, u, v, u * u, u * v, v * v).finished(); }
 using Params = Eigen::Matrix<double, kParams, 1>;
@@ -100,12 +103,13 @@ bool fit_step(const std::vector<BandPixel>& band, const StepModel& m, double len
     for (std::size_t i = 0; i < band.size(); ++i) {
       const BandPixel& p = band[i];
       const double rx = -length * p.v, ry = length * p.u;  // the rotation's displacement per radian
-      const double qx = p.x - theta[0] - theta[2] * rx, qy = p.y - theta[1] - theta[2] * ry;
+      const double ex = length * p.u, ey = length * p.v;   // the stretch's per unit
+      const double qx = p.x - theta[0] - theta[2] * rx - theta[3] * ex, qy = p.y - theta[1] - theta[2] * ry - theta[4] * ey;
       const double s = StepModel::at(m.s, qx, qy), gx = StepModel::at(m.gx, qx, qy), gy = StepModel::at(m.gy, qx, qy);
       const Terms phi = terms(p.u, p.v);
-      const double a = theta.segment<kTerms>(3).dot(phi), b = theta.segment<kTerms>(3 + kTerms).dot(phi);
+      const double a = theta.segment<kTerms>(kMotion).dot(phi), b = theta.segment<kTerms>(kMotion + kTerms).dot(phi);
       residuals[i] = p.value - (a + b * s);
-      rows[i] << -b * gx, -b * gy, -b * (gx * rx + gy * ry), phi, s * phi;
+      rows[i] << -b * gx, -b * gy, -b * (gx * rx + gy * ry), -b * gx * ex, -b * gy * ey, phi, s * phi;
     }
     std::vector<double> magnitude;
     magnitude.reserve(band.size());
@@ -127,7 +131,7 @@ bool fit_step(const std::vector<BandPixel>& band, const StepModel& m, double len
     if (ldlt.info() != Eigen::Success) return false;
     Params step = ldlt.solve(rhs);
     if (!step.allFinite()) return false;
-    const double move = step.head<2>().norm() + std::abs(step[2]) * length;
+    const double move = step.head<2>().norm() + (std::abs(step[2]) + std::abs(step[3]) + std::abs(step[4])) * length;
     if (move > 1.0) step *= 1.0 / move;  // at most a pixel a step: the blurred step's basin
     theta += step;
     if (move < 1e-4) break;
@@ -176,10 +180,11 @@ OutlineFit locate_outline(const cv::Mat& average, const cv::Mat& seen_share, con
       f.pixels = static_cast<long long>(band.size());
       f.shift_px = theta.head<2>();
       f.rotation_rad = theta[2];
+      f.stretch = Vec2(theta[3], theta[4]);
       std::vector<double> step;  // (skin − beside) / skin along the band
       for (const BandPixel& p : band) {
         const Terms phi = terms(p.u, p.v);
-        const double a = theta.segment<kTerms>(3).dot(phi), b = theta.segment<kTerms>(3 + kTerms).dot(phi);
+        const double a = theta.segment<kTerms>(kMotion).dot(phi), b = theta.segment<kTerms>(kMotion + kTerms).dot(phi);
         if (std::abs(a + b) > 1e-9) step.push_back(b / (a + b));
       }
       if (!step.empty()) {

@@ -9,7 +9,7 @@
 // (the share of each pixel that sees the skin, a step to a sixteenth of a pixel), displaced by a shift: J(x) ≈ a(x) + b(x)·S(x − t) over a band around the
 // outline, J the average and S the seen mask, both blurred by smoothing_px, a and b affine in the image
 // (illumination fall-off: a and b quadratic in the image; affine left 0.05 px of opposite biases at the
-// band's two ends), t and a small rotation about the seen region's centroid by Gauss–Newton with Tukey
+// band's two ends), t and a small rotation and stretch (per axis) about the seen region's centroid by Gauss–Newton with Tukey
 // weights (glare, pressed skin at the edge). σ of t: a jackknife over 16 sectors of the band (its
 // residuals are correlated along it). The worn capture is then read where its outline puts the part.
 #include <clearfit/geometry/mesh.hpp>
@@ -38,6 +38,9 @@ struct OutlineFit {
   Vec2 shift_px = Vec2::Zero();  ///< the average shows the map's outline displaced by this (px)
   Vec2 sigma_px = Vec2::Constant(std::numeric_limits<double>::quiet_NaN());  ///< 1-σ per axis (jackknife)
   double rotation_rad = 0;       ///< and turned by this about the seen region's centroid (fitted so that it does not bias the shift)
+  /// and stretched by this (relative, per image axis) about that centroid: fitted so that an outline seen larger
+  /// or smaller than the map's does not bias the shift; not applied.
+  Vec2 stretch = Vec2::Zero();
   double contrast = 0;           ///< (skin − beside) / skin across the outline, median along the band
   long long pixels = 0;          ///< band pixels used
   std::string problem;           ///< why not found (empty when found)
