@@ -89,6 +89,7 @@ nlohmann::json report_json(const CalibrationResult& r, const CalibrationGrid& gr
       {"intrinsics", r.model.intrinsics},
       {"rms_px", r.rms_px},
       {"mrcal_rms_px", r.mrcal_rms_px},
+      {"corner_weight_scale", r.corner_weight_scale},
       {"seed", {{"focal_px", r.focal_seed_px}, {"method", r.focal_seed_method}, {"rms_px", r.seed_rms_px}}},
       {"corners_used", r.corners_used},
       {"outliers", {{"count", r.outliers}, {"corners", outliers}}},
@@ -138,6 +139,7 @@ struct CalibrateArgs {
   std::vector<std::string> images;
   double spacing_mm = 0, focal = 0, uncertainty_distance_mm = 0;
   bool no_uncertainty = false, no_outlier_rejection = false, no_warp = false, no_refine = false;
+  bool mrcal_regularization = false;
   ViewSelectionOptions video;
 };
 
@@ -229,6 +231,9 @@ Run add_calibrate(CLI::App& app) {
   sub->add_flag("--no-uncertainty", o->no_uncertainty, "Skip the projection uncertainty");
   sub->add_flag("--no-outlier-rejection", o->no_outlier_rejection, "Keep every corner");
   sub->add_flag("--no-warp", o->no_warp, "Do not solve for the board's warp (a perfectly flat board)");
+  sub->add_flag("--mrcal-regularization", o->mrcal_regularization,
+                "Keep mrcal's regularisation as mrcal-calibrate-cameras sizes it (for 1 px corners) even where "
+                "scaling it to the corners' noise fits them better (for comparisons)");
   sub->add_flag("--no-refine", o->no_refine,
                 "Images: skip the lens-aware corner refinement and second solve");
   sub->add_option("--corners-out", o->corners_out, "Write the corners used (mrcal corners.vnl)");
@@ -270,6 +275,7 @@ Run add_calibrate(CLI::App& app) {
     opt.compute_uncertainty = !o->no_uncertainty;
     opt.outlier_rejection = !o->no_outlier_rejection;
     opt.solve_calobject_warp = !o->no_warp;
+    opt.scale_regularization_to_noise = !o->mrcal_regularization;
     opt.uncertainty_distance_mm = o->uncertainty_distance_mm;
     opt.progress = [](const std::string& s) { std::cerr << s << "\n"; };
     if (!(std::isfinite(o->focal) && o->focal >= 0))

@@ -44,8 +44,11 @@ Marshalled marshal(const BoardProblem& p, const Selection& s) {
     m.observations[i].iframe = i;
   }
   m.pool.resize(p.corners.size());
-  for (std::size_t i = 0; i < p.corners.size(); ++i)
+  if (!(p.weight_scale > 0)) throw std::invalid_argument("clearfit calibrate: weight_scale must be positive");
+  for (std::size_t i = 0; i < p.corners.size(); ++i) {
     for (int k = 0; k < 3; ++k) m.pool[i].xyz[k] = p.corners[i][k];
+    if (m.pool[i].z > 0) m.pool[i].z *= p.weight_scale;
+  }
   m.warp.x2 = p.warp[0];
   m.warp.y2 = p.warp[1];
   m.imagersize[0] = p.imager_width;
@@ -65,9 +68,12 @@ Marshalled marshal(const BoardProblem& p, const Selection& s) {
   return m;
 }
 
+/// The board measurements of x, in pixels (mrcal's are times the weight scale).
 std::vector<double> board_part(const std::vector<double>& x, const BoardProblem& p) {
   const int n = mrcal_num_measurements_boards(static_cast<int>(p.frames.size()), p.grid_width, p.grid_height);
-  return {x.begin(), x.begin() + n};
+  std::vector<double> out(x.begin(), x.begin() + n);
+  for (double& v : out) v /= p.weight_scale;
+  return out;
 }
 
 }  // namespace
@@ -91,10 +97,11 @@ SolveOutput optimize(BoardProblem& p, const Selection& s) {
     else out.messages.push_back(std::move(line));
   out.ok = stats.rms_reproj_error__pixels >= 0;
   if (!out.ok) return out;
-  out.rms_px = stats.rms_reproj_error__pixels;
+  out.rms_px = stats.rms_reproj_error__pixels / p.weight_scale;
   out.outliers = stats.Noutliers;
   for (int i = 0; i < nf; ++i) std::memcpy(p.frames[i].data(), &m.frames[i], sizeof(double) * 6);
-  for (std::size_t i = 0; i < p.corners.size(); ++i) p.corners[i].z() = m.pool[i].z;
+  for (std::size_t i = 0; i < p.corners.size(); ++i)
+    if (m.pool[i].z < 0) p.corners[i].z() = m.pool[i].z;  // inliers keep their given weight
   if (s.warp) p.warp = {m.warp.x2, m.warp.y2};
   out.board_residuals = board_part(x, p);
   return out;
@@ -155,7 +162,7 @@ PackedJacobian packed_jacobian(const BoardProblem& p, const Selection& s) {
     *v = v0 - step;
     evaluate(xm);
     *v = v0;
-    for (int r = 0; r < m.n_measurements; ++r) out.J(r, k) = (xp[r] - xm[r]) / (2 * h);
+    for (int r = 0; r < m.n_measurements; ++r) out.J(r, k) = (xp[r] - xm[r]) / (2 * h * p.weight_scale);
   }
   return out;
 }

@@ -24,6 +24,12 @@ struct BoardProblem {
   /// (x, y, weight) per corner, views x rows x cols; weight < 0 is ignored,
   /// and new outliers are marked < 0 on output.
   std::vector<Eigen::Vector3d> corners;
+  /// mrcal sees every corner weight times this (> 0). Its regularisation does
+  /// not scale with the residuals: it is sized for corners of about 1 px
+  /// noise, so with sharper corners it outweighs the data; a scale of
+  /// 1 px / noise gives it its intended share. Residuals, RMS and Jacobians
+  /// come back in pixels (divided by it); weights read back are the given ones.
+  double weight_scale = 1.0;
 };
 
 struct Selection {
@@ -39,16 +45,16 @@ struct SolveOutput {
   /// What mrcal printed besides its outlier passes (its warnings, or why it failed), one line each,
   /// without its source prefix; mrcal's standard error is captured, not shown.
   std::vector<std::string> messages;
-  /// Board residuals (weighted; x then y per corner, views x rows x cols),
-  /// outliers 0.
+  /// Board residuals (weighted by the corner weights, in pixels; x then y
+  /// per corner, views x rows x cols), outliers 0.
   std::vector<double> board_residuals;
 };
 
 /// mrcal_optimize on the problem; what it prints on stderr is captured into the output.
 SolveOutput optimize(BoardProblem& problem, const Selection& selection);
 
-/// The Jacobian of all of mrcal's measurements (boards then regularisation)
-/// with respect to the packed state, by central differences of
+/// The Jacobian of all of mrcal's measurements (boards then regularisation),
+/// divided by the problem's weight_scale, with respect to the packed state, by central differences of
 /// mrcal_optimizer_callback, and the facts needed to propagate it.
 struct PackedJacobian {
   Eigen::MatrixXd J;             ///< Nmeasurements x Nstate

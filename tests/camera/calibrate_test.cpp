@@ -136,6 +136,8 @@ TEST(Calibrate, RecoversKnownOpencv8Lens) {
   std::printf("rms %.4f px (expected %.4f), corners %d, outliers %d, solve %.3f s, uncertainty %.3f s\n",
               r.rms_px, expected_rms, n, r.outliers, r.solve_seconds, r.uncertainty_seconds);
   EXPECT_NEAR(r.rms_px, expected_rms, 0.03 * expected_rms);
+  // mrcal's regularisation does not bias this lens (small distortions): its sizing is kept.
+  EXPECT_EQ(r.corner_weight_scale, 1.0);
   const Stats e = error_vs_truth(s.truth, r.model, r);
   std::printf("projection error vs truth: centre %.4f, rms %.4f, worst %.4f px\n", e.centre, e.rms, e.worst);
   EXPECT_LT(e.worst, 0.6);
@@ -184,7 +186,8 @@ nlohmann::json compare_with_mrcal(const Shared& s) {
                           "/../tests/tools/mrcal_compare.py --ours " + s.ours_path.string() + " --mrcal " +
                           s.mrcal_path.string() + " --grid 16 12 --distance " +
                           std::to_string(s.ours.uncertainty_distance_mm) + " --sigma " +
-                          std::to_string(s.ours.observed_pixel_sigma_px) + " --solution " + sol_path.string();
+                          std::to_string(s.ours.observed_pixel_sigma_px) + " --solution " + sol_path.string() +
+                          " --solution-weight-scale " + std::to_string(s.ours.corner_weight_scale);
   std::string out = run(cmd);
   const auto brace = out.find('{');  // mrcal may print notes before the JSON
   return nlohmann::json::parse(out.substr(brace == std::string::npos ? 0 : brace));
@@ -238,6 +241,81 @@ TEST(Calibrate, MatchesMrcalCalibrateCameras) {
       "vs truth: mrcal tool centre %.4f rms %.4f worst %.4f; ours centre %.4f rms %.4f worst %.4f px\n",
       e.centre, e.rms, e.worst, o.centre, o.rms, o.worst);
   EXPECT_LT(o.rms, 1.5 * e.rms + 0.02);
+}
+
+// A 112-degree lens (an equidistant fisheye, r = f theta, fitted by OPENCV8's
+// rational model: large rational coefficients), sharp corners (0.05 px), and
+// no corner beyond 85 % of the half diagonal: the image corners are
+// extrapolated. mrcal's regularisation, sized for 1 px corners, outweighed
+// such data and bent the model where the views thin out.
+struct WideLensError {
+  double whole_p95 = 0, whole_max = 0, observed_max = 0;
+};
+WideLensError wide_lens_error(const CameraModel& truth, const CameraModel& model,
+                              const std::vector<BoardObservation>& views) {
+  const int nx = 32, ny = 24;
+  std::vector<int> observed(nx * ny, 0);
+  for (const auto& v : views)
+    for (const auto& c : v.corners)
+      if (c.z() > 0)
+        ++observed[std::clamp(static_cast<int>((c.y() + 0.5) / truth.height * ny), 0, ny - 1) * nx +
+                   std::clamp(static_cast<int>((c.x() + 0.5) / truth.width * nx), 0, nx - 1)];
+  std::vector<double> d = projection_difference_grid(truth, model, nx, ny, observed);
+  WideLensError e;
+  for (std::size_t k = 0; k < d.size(); ++k) {
+    if (!std::isfinite(d[k])) d[k] = 1e9;
+    if (observed[k]) e.observed_max = std::max(e.observed_max, d[k]);
+  }
+  std::sort(d.begin(), d.end());
+  e.whole_p95 = d[static_cast<std::size_t>(0.95 * (d.size() - 1))];
+  e.whole_max = d.back();
+  return e;
+}
+
+TEST(Calibrate, WideLensExtrapolatesBeyondTheViews) {
+  // bench/widelens_bench.cpp renders boards through the same lens.
+  const CameraModel truth{"LENSMODEL_OPENCV8",
+                          {655.0, 656.0, 641.3, 478.6, 0.6243, 0.05934, 0.0005, -0.0003, 0.000452, 0.9563, 0.1827, 0.005247},
+                          1280, 960, {}, {}};
+  SyntheticViewsOptions o;
+  o.views = 30;
+  o.noise_px = 0.05;
+  o.seed = 5;
+  o.min_distance_mm = 350;
+  o.max_distance_mm = 900;
+  o.min_inside_fraction = 0.6;
+  std::printf("wide lens: synthetic views seed %u, sigma %.2f px\n", o.seed, o.noise_px);
+  std::vector<BoardObservation> views = synthesize_views(truth, kGrid, o);
+  const Eigen::Vector2d centre(0.5 * (truth.width - 1), 0.5 * (truth.height - 1));
+  for (auto& v : views)
+    for (auto& c : v.corners)
+      if (c.z() > 0 && (c.head<2>() - centre).norm() > 0.85 * centre.norm()) c = {-1, -1, -1};
+  CalibrationOptions opt;
+  opt.compute_uncertainty = false;
+  const CalibrationResult ours = calibrate_camera(views, kGrid, opt);
+  opt.scale_regularization_to_noise = false;
+  const CalibrationResult sized = calibrate_camera(views, kGrid, opt);
+  // mrcal's tool on the same corners (required: CI installs it).
+  const fs::path dir = scratch() / "wide";
+  fs::create_directories(dir / "mrcal");
+  write_corners_levels_vnl(views, dir / "corners.vnl");
+  run("cd " + dir.string() +
+      " && /usr/bin/python3 /usr/bin/mrcal-calibrate-cameras --corners-cache corners.vnl --lensmodel "
+      "LENSMODEL_OPENCV8 --focal 650 --imagersize 1280 960 --object-spacing 30 --object-width-n 10 "
+      "--object-height-n 10 --outdir mrcal 'frame*.png'");
+  const CameraModel tool = read_cameramodel(dir / "mrcal" / "camera-0.cameramodel");
+  const WideLensError e = wide_lens_error(truth, ours.model, views), s = wide_lens_error(truth, sized.model, views),
+                      t = wide_lens_error(truth, tool, views);
+  std::printf("error vs truth (whole p95 / whole max / observed max, px): ours (weights x %.1f) %.3f / %.2f / %.3f; "
+              "mrcal's sizing %.3f / %.2f / %.3f; mrcal-calibrate-cameras %.3f / %.2f / %.3f\n",
+              ours.corner_weight_scale, e.whole_p95, e.whole_max, e.observed_max, s.whole_p95, s.whole_max,
+              s.observed_max, t.whole_p95, t.whole_max, t.observed_max);
+  EXPECT_GT(ours.corner_weight_scale, 10.0);  // 1 px over about 0.05 px
+  EXPECT_DOUBLE_EQ(sized.corner_weight_scale, 1.0);
+  EXPECT_LT(e.observed_max, 0.15);
+  EXPECT_LT(e.whole_p95, 0.5 * t.whole_p95);
+  EXPECT_LT(e.whole_max, t.whole_max);
+  EXPECT_LT(e.whole_p95, 0.5 * s.whole_p95);
 }
 
 TEST(CalibrationOptions, DefaultsAreValidAndFieldsNamed) {

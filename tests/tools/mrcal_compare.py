@@ -12,7 +12,10 @@
 #   uncertainty_ours_px (with --solution S.json {intrinsics, frames (rt
 #            cam_from_board per view), warp, weights (per corner, < 0 unused)}):
 #            the same, computed by mrcal's Python on OUR problem at OUR solution
-#            (mrcal's optimization_inputs with our state and weights swapped in)
+#            (mrcal's optimization_inputs with our state and weights swapped in);
+#            --solution-weight-scale c: our final solve multiplied the weights
+#            by c (mrcal's regularisation scaled to the corners' noise), so the
+#            weights and --sigma are multiplied by c for this one
 import argparse, json, sys
 import numpy as np
 import mrcal
@@ -24,6 +27,7 @@ p.add_argument('--grid', type=int, nargs=2, default=(16, 12))
 p.add_argument('--distance', type=float, required=True)
 p.add_argument('--sigma', type=float, required=True)
 p.add_argument('--solution')
+p.add_argument('--solution-weight-scale', type=float, default=1.0)
 a = p.parse_args()
 
 ours = mrcal.cameramodel(a.ours)
@@ -45,10 +49,10 @@ qx = (np.arange(gx) + 0.5) * W / gx - 0.5
 qy = (np.arange(gy) + 0.5) * H / gy - 0.5
 q = np.array([(u, v) for v in qy for u in qx])
 
-def uncertainty(model):
+def uncertainty(model, sigma=a.sigma):
     v = mrcal.unproject(q, *model.intrinsics(), normalize=True)
     return np.asarray(mrcal.projection_uncertainty(v * a.distance, model=model, what='worstdirection-stdev',
-                                                   observed_pixel_uncertainty=a.sigma)).ravel().tolist()
+                                                   observed_pixel_uncertainty=sigma)).ravel().tolist()
 
 out_extra = {}
 if a.solution:
@@ -58,10 +62,12 @@ if a.solution:
     oi2['frames_rt_toref'] = np.array(sol['frames'], dtype=float)
     oi2['calobject_warp'] = np.array(sol['warp'], dtype=float)
     obs2 = obs.copy()
-    obs2[..., 2] = np.array(sol['weights'], dtype=float).reshape(obs.shape[:-1])
+    w = np.array(sol['weights'], dtype=float).reshape(obs.shape[:-1])
+    obs2[..., 2] = np.where(w > 0, w * a.solution_weight_scale, w)
     oi2['observations_board'] = obs2
     oi2['do_apply_outlier_rejection'] = False
-    out_extra['uncertainty_ours_px'] = uncertainty(mrcal.cameramodel(optimization_inputs=oi2, icam_intrinsics=0))
+    out_extra['uncertainty_ours_px'] = uncertainty(mrcal.cameramodel(optimization_inputs=oi2, icam_intrinsics=0),
+                                                   a.sigma * a.solution_weight_scale)
 
 json.dump({**out_extra,'ours': {'lensmodel': ours.intrinsics()[0], 'intrinsics': ours.intrinsics()[1].tolist(),
                     'imagersize': [int(s) for s in ours.imagersize()]},

@@ -4,7 +4,8 @@
 // seeded without Python: the focal length from the board homographies (or a
 // guess), the board poses by PnP on normalised points, then mrcal's staged
 // solve (board poses only -> + intrinsics core -> everything, with the board's
-// warp, regularisation and outlier rejection). Higher lens models are seeded
+// warp, regularisation and outlier rejection, then once more with mrcal's
+// regularisation scaled to the corners' noise, kept where it fits better). Higher lens models are seeded
 // from a lower one's solution (OPENCV12 from OPENCV8, splined from
 // STEREOGRAPHIC).
 //
@@ -48,6 +49,14 @@ struct CalibrationOptions {
   bool solve_calobject_warp = true;
   bool outlier_rejection = true;
   bool regularization = true;
+  /// mrcal sizes its regularisation for corners of about 1 px noise: the final
+  /// solve is repeated with the corner weights scaled by 1 px / the corners'
+  /// noise (1 to 100), so it keeps its intended share of the cost when the
+  /// corners are sharper, and that solution is kept when it fits the corners
+  /// better than a chi-square of the distortion parameters allows (mrcal's
+  /// sizing biased the model, as on a wide lens). false: mrcal's sizing
+  /// always (what mrcal-calibrate-cameras does).
+  bool scale_regularization_to_noise = true;
   /// Projection uncertainty (mrcal's method, from a finite-difference
   /// Jacobian of mrcal's residuals): costs about as much as the solve.
   bool compute_uncertainty = true;
@@ -91,6 +100,11 @@ struct CalibrationResult {
   /// the same sum divided by 2 x all grid points, missing ones included.
   double mrcal_rms_px = 0;
   double seed_rms_px = 0;         ///< mrcal's RMS after the first stage (board poses only, seeded intrinsics)
+  /// The corner weights were multiplied by this in the final solve (1 px over
+  /// the corners' noise, 1 to 100), which scales mrcal's regularisation,
+  /// sized for 1 px corners, to the data; 1 when mrcal's sizing was kept
+  /// (see CalibrationOptions::scale_regularization_to_noise).
+  double corner_weight_scale = 1;
   double focal_seed_px = 0;       ///< the focal length the solve started from
   std::string focal_seed_method;  ///< "option", "homographies", "field of view", "seed model"
   int corners_used = 0;           ///< inlier corners
