@@ -75,6 +75,13 @@ Eigen::Vector3d board_point(const CalibrationGrid& g, int i, int j) {
   return {j * g.spacing_mm, i * g.spacing_mm, 0};
 }
 
+// board_point with mrcal's board warp: the board sags along z by x2 * 4 u (1 - u) + y2 * 4 v (1 - v),
+// u and v the column and row over the grid (0 to 1), i.e. x2 + y2 at the centre.
+Eigen::Vector3d warped_board_point(const CalibrationGrid& g, int i, int j, const std::array<double, 2>& warp) {
+  const double u = g.width > 1 ? double(j) / (g.width - 1) : 0.0, v = g.height > 1 ? double(i) / (g.height - 1) : 0.0;
+  return board_point(g, i, j) + Eigen::Vector3d(0, 0, warp[0] * 4 * u * (1 - u) + warp[1] * 4 * v * (1 - v));
+}
+
 // Focal length (pixels) from the views' homographies with the principal point
 // at the imager centre and square pixels (Zhang's orthogonality constraints
 // solved for 1/f^2 in least squares); 0 when they do not determine it.
@@ -547,7 +554,11 @@ void collect_results(const std::vector<BoardObservation>& views, const Calibrati
         const Eigen::Vector2d r(final_out.board_residuals[2 * idx], final_out.board_residuals[2 * idx + 1]);
         CornerResidual cr{frame_view[fi], i, j, w > 0 ? r.norm() / w : 0.0, given.head<2>()};
         if (c.z() < 0) {
-          if (present(given)) res.outlier_corners.push_back(cr);
+          if (!present(given)) continue;
+          // mrcal gives an outlier a zero residual: its distance from the solution's projection instead.
+          cr.error_px = (res.model.project(view.cam_from_board.apply(warped_board_point(grid, i, j, problem.warp))) -
+                         given.head<2>()).norm();
+          res.outlier_corners.push_back(cr);
           continue;
         }
         sum2 += cr.error_px * cr.error_px;

@@ -110,6 +110,11 @@ TEST_F(Calibrate, MrcalsOutlierChatterIsClearfitsOwnMessage) {
   ASSERT_EQ(r.exit_code, 0) << r;
   const auto report = nlohmann::json::parse(read_text(work() / "report.json"));
   EXPECT_GE(report["outliers"]["count"].get<int>(), moved) << r;
+  // Each moved corner is reported with its distance from the solution (15 px moved, 0.2 px noise), not 0.
+  int found = 0;
+  for (const auto& o : report["outliers"]["corners"])
+    if (std::abs(o["error_px"].get<double>() - 15.0) < 1.5) ++found;
+  EXPECT_EQ(found, moved) << report["outliers"].dump();
   EXPECT_EQ(r.err.find("Threw out"), std::string::npos) << "libmrcal's own words on stderr\n" << r;
   EXPECT_EQ(r.err.find("mrcal.c("), std::string::npos) << r;
   EXPECT_NE(r.err.find("outliers thrown out and solved again ("), std::string::npos) << r;
