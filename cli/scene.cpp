@@ -279,6 +279,7 @@ void GlareSection::bind(SceneFields& f) {
   f.key("threshold_sigmas", options.threshold_sigmas);
   f.key("min_change", options.min_change);
   f.key("min_static", options.min_static);
+  f.key("outline_band_px", options.outline_band_px);
   f.key("max_fraction", options.max_fraction);
 }
 

@@ -105,6 +105,60 @@ cv::Mat chart_picture(const cv::Mat& bgr, const InverseMap& inv, const Vec2& shi
   return out;
 }
 
+/// The glare mask and, with a baseline read through its own view, the fall-off estimated on the way.
+struct GlareFound {
+  GlareMask glare;
+  VignettingEstimate vignetting;
+};
+
+/// The glare, with the phases compared where they see the same skin: with its own view (its own
+/// geometry, or the phase registration's field) the baseline is read where it sees the worn capture's
+/// skin, through its own transmittance and share of the fall-off (estimated here); only the skin both
+/// phases see is compared.
+GlareFound find_glare(const RefractionMap& map, const PhaseAverage& base_avg, const PhaseAverage& worn_avg, const RefractionMap* base_map,
+                      const InverseMap* view, const AssessmentOptions& o) {
+  GlareFound out;
+  cv::Mat seen = seen_pixels(map, base_avg.roi);
+  if (!view) {
+    out.glare = detect_glare(base_avg, worn_avg, seen, o.glare);
+    return out;
+  }
+  VignettingOptions vo = o.vignetting;
+  vo.enabled = vo.enabled && base_map;
+  BaselineAsWorn as_worn = baseline_as_worn(base_avg, worn_avg, map, base_map ? *base_map : map, *view, vo);
+  cv::bitwise_and(seen, as_worn.comparable, seen);
+  out.vignetting = std::move(as_worn.vignetting);
+  out.glare = detect_glare(as_worn.average, worn_avg, seen, o.glare);
+  return out;
+}
+
+/// The baseline's gap (baseline_gap.hpp), with the glare left out. A highlight is texture that does not move
+/// with the skin: one that stays in the image reads as skin without parallax and pulls the gap towards 0, one in
+/// a single phase matches nothing (the wristband's realistic preset: 0.953 ± 0.022 mm for a 1.0 mm gap, and at
+/// the band's oblique end, where the gap's parallax is largest, a false 4.5 mm² place). The glare is found with
+/// the baseline read at a first estimate and the gap estimated again without it.
+GapEstimate estimate_gap_without_glare(const AssessmentScene& scene, const PhaseAverage& base_avg, const PhaseAverage& worn_avg,
+                                       const AssessmentOptions& o) {
+  const InverseMap& inv = *scene.inverse;
+  ChartField worn_green = resample_to_chart(worn_avg, inv);
+  const GapEstimate first = estimate_gap(*scene.baseline_rays, base_avg, worn_green, o.gap);
+  if (!o.glare.enabled || !first.estimated) return first;
+  const RefractionMap map = scene.baseline_rays->map(first.gap_mm);
+  const InverseMap view = compute_inverse_map(map, scene.inverse_options, scene.contact);
+  const GlareMask glare = find_glare(*scene.forward, base_avg, worn_avg, &map, &view, o).glare;
+  if (glare.regions == 0) return first;
+  // The mask is on the worn capture's pixels; the baseline's own highlights lie there too, up to the
+  // parallax (its margin covers it) and the phases' residual shifts (sub-pixel to a few pixels).
+  PhaseAverage base = base_avg;
+  base.mean = base_avg.mean.clone();
+  base.mean.setTo(std::numeric_limits<float>::quiet_NaN(), glare.mask);
+  const std::vector<std::uint8_t> texels = glare_texels(glare, inv, worn_avg.residual_shift_px);
+  for (std::size_t k = 0; k < texels.size(); ++k)
+    if (texels[k]) worn_green.value[k] = std::numeric_limits<float>::quiet_NaN();
+  const GapEstimate second = estimate_gap(*scene.baseline_rays, base, worn_green, o.gap);
+  return second.estimated ? second : first;
+}
+
 /// The baseline's own map at the given or estimated gap; fills a.baseline_geometry and its warnings.
 RefractionMap baseline_geometry(const AssessmentScene& scene, const PhaseAverage& base_avg, const PhaseAverage& worn_avg, Assessment& a,
                                 const AssessmentOptions& o) {
@@ -114,7 +168,7 @@ RefractionMap baseline_geometry(const AssessmentScene& scene, const PhaseAverage
     r.gap_mm = *scene.baseline_gap_mm;
   } else {
     if (o.progress) o.progress("estimating the baseline's gap", 0, 0);
-    const GapEstimate e = estimate_gap(*scene.baseline_rays, base_avg, resample_to_chart(worn_avg, *scene.inverse), o.gap);
+    const GapEstimate e = estimate_gap_without_glare(scene, base_avg, worn_avg, o);
     r.estimate = e;
     r.gap_mm = e.gap_mm;
     r.gap_sigma_mm = e.sigma_mm;
@@ -354,17 +408,11 @@ void check_captures(const AssessmentScene& scene, const Phases& p, const Baselin
   // The phases are compared where they see the same skin.
   // With its own geometry the baseline is read where it sees the same skin, through its own
   // transmittance and share of the fall-off (estimated here); only the skin both phases see is compared.
-  cv::Mat seen = seen_pixels(map, p.base_avg.roi);
+  GlareFound found = find_glare(map, p.base_avg, p.worn_avg, b.map ? &*b.map : nullptr, b.view(), o);
+  a.glare = std::move(found.glare);
   if (b.view()) {
-    VignettingOptions vo = o.vignetting;
-    vo.enabled = vo.enabled && b.map.has_value();
-    BaselineAsWorn as_worn = baseline_as_worn(p.base_avg, p.worn_avg, map, b.map ? *b.map : map, *b.view(), vo);
-    cv::bitwise_and(seen, as_worn.comparable, seen);
-    if (b.map) warn_vignetting(as_worn.vignetting, a.warnings);
-    a.baseline_geometry.vignetting = std::move(as_worn.vignetting);
-    a.glare = detect_glare(as_worn.average, p.worn_avg, seen, o.glare);
-  } else {
-    a.glare = detect_glare(p.base_avg, p.worn_avg, seen, o.glare);
+    if (b.map) warn_vignetting(found.vignetting, a.warnings);
+    a.baseline_geometry.vignetting = std::move(found.vignetting);
   }
   check_glare(a.glare, a.baseline, a.worn, o.glare, a.warnings);
   const double glare_of_roi = a.glare.empty() ? 0.0 : cv::countNonZero(a.glare.mask) / static_cast<double>(a.glare.mask.total());

@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 #include <opencv2/imgproc.hpp>
 
+#include <algorithm>
 #include <cmath>
 #include <random>
 
@@ -154,6 +155,58 @@ TEST(Glare, NoGlareNoMaskAndOffWhenDisabled) {
   EXPECT_TRUE(detect_glare(s.base, s.worn, s.seen, off).empty());
   off.enabled = true, off.margin_px = -1;
   EXPECT_THROW(off.validate(), std::invalid_argument);
+}
+
+// The seen skin's outline: a pixel there holds skin and the grey beside the part, in shares that differ
+// between the phases when the camera moved between them (0.6, −0.7 px here) — more blue against green than
+// the skin, and changing — and the smoothing carries it a few pixels in. That is not glare; a highlight
+// beside the outline still is.
+struct OutlineScene {
+  PhaseAverage base, worn;
+  cv::Mat seen;
+  static double share_1d(double lo, double hi, int x) { return std::clamp(std::min(hi, x + 0.5) - std::max(lo, x - 0.5), 0.0, 1.0); }
+  OutlineScene(double glare_peak, std::uint32_t seed) {
+    std::mt19937 rng(seed);
+    std::normal_distribution<float> n(0.f, 1.f);
+    const cv::Rect roi(0, 0, 200, 160);
+    seen = cv::Mat(roi.size(), CV_8U, cv::Scalar(0));
+    seen(cv::Rect(20, 20, 160, 120)).setTo(255);  // pixel centres inside the not-worn capture's outline
+    for (PhaseAverage* p : {&base, &worn}) {
+      const bool w = p == &worn;
+      const double dx = w ? 0.6 : 0.0, dy = w ? -0.7 : 0.0;
+      p->roi = roi;
+      p->mean = cv::Mat(roi.size(), CV_32F);
+      p->blue_half = cv::Mat(half_grid(roi.size()), CV_32F, cv::Scalar(0));
+      for (int y = 0; y < roi.height; ++y)
+        for (int x = 0; x < roi.width; ++x) {
+          const double share = share_1d(19.5 + dx, 179.5 + dx, x) * share_1d(19.5 + dy, 139.5 + dy, y);
+          const double skin = 0.3 * mottle(x, y), grey = 0.08;
+          const double glare = w ? GlareScene::gauss(x, y, 170, 80, glare_peak) : 0;
+          p->mean.at<float>(y, x) = static_cast<float>((share * skin + (1 - share) * grey + glare) * (1 + 0.004 * n(rng)));
+          const double blue = (share * 0.8 * skin + (1 - share) * grey + glare) * (1 + 0.006 * n(rng));
+          if (y % 2 == 0) p->blue_half.at<float>(y / 2, x / 2) += static_cast<float>(0.5 * blue);
+        }
+    }
+  }
+};
+
+TEST(Glare, WithTheOutlineBandTheOutlineIsNotGlareAHighlightBesideItIs) {
+  GlareOptions band;
+  band.outline_band_px = 4;
+  for (std::uint32_t seed : {5u, 6u}) {
+    const OutlineScene quiet(0, seed);
+    EXPECT_GT(detect_glare(quiet.base, quiet.worn, quiet.seen, GlareOptions{}).regions, 0);  // without the band: the edge
+    const GlareMask none = detect_glare(quiet.base, quiet.worn, quiet.seen, band);
+    std::printf("seed %u, no glare: %d regions, %.2f %% masked\n", seed, none.regions, 100 * none.fraction);
+    EXPECT_EQ(none.regions, 0);
+    const OutlineScene s(0.05, seed);  // 10 px inside the outline's right edge
+    const GlareMask g = detect_glare(s.base, s.worn, s.seen, band);
+    std::printf("seed %u, a highlight beside the outline: %d regions, %.2f %% masked\n", seed, g.regions, 100 * g.fraction);
+    EXPECT_EQ(g.regions, 1);
+    EXPECT_NE(g.mask.at<std::uint8_t>(80, 170), 0);
+    EXPECT_NE(g.mask.at<std::uint8_t>(80, 179), 0);  // out to the outline
+    EXPECT_EQ(g.mask.at<std::uint8_t>(80, 100), 0);
+  }
 }
 
 TEST(Glare, SaturatedGlareIsMasked) {

@@ -17,7 +17,8 @@
 // blanched pixels below the glare's ratio), else 0.3. A pixel is glare when
 // |γ| or s passes max(k·robust σ, a floor), or when green or blue is near
 // saturation; the region grows to half those thresholds (hysteresis) and by
-// `margin_px`.
+// `margin_px`. The seen skin's outline (`outline_band_px`, off by default) can
+// be judged by saturation only: its pixels mix skin with what lies beside the part.
 #include <clearfit/fit/capture.hpp>
 #include <clearfit/fit/hotspots.hpp>
 #include <clearfit/refraction/inverse_map.hpp>
@@ -35,6 +36,12 @@ struct GlareOptions {
   double saturation = 0.95;      ///< linear green or blue mean at or above this is glare
   double smooth_px = 1.5;        ///< Gaussian σ on the half-resolution grid
   int margin_px = 6;             ///< grown by this many camera pixels
+  /// The seen skin's outline: pixels this near an unseen one (camera px) hold skin and what lies beside the part
+  /// in shares that change between the phases, as glare's colour does; they are left out of the smoothing and
+  /// the noise and masked only when saturated (the margin covers them beside glare found farther in). Off (0) by
+  /// default: at 4 px it frees the edge of false masks, but those masks also hide false signal at a band's
+  /// oblique ends (an H.264 capture, LossyCli: a false place there and Pearson 0.53 against 0.83 at 0).
+  double outline_band_px = 0;
   double max_fraction = 0.5;     ///< a capture whose seen skin is more glare than this is refused
   double blanching_ratio = 0.3;  ///< ρ when it cannot be measured
   void validate() const;         ///< throws std::invalid_argument naming the field
