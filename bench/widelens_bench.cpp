@@ -4,9 +4,13 @@
 //     images/, board.yaml, truth.cameramodel, truth.vnl (true corners)
 //   widelens_bench score TRUTH MODEL CORNERS.vnl W H GRID_W GRID_H SPACING
 //     projection error against the truth on a 64 x 48 grid (rotation fitted over the observed cells):
-//     p50 / p95 / max over the whole image, the observed cells and the others.
+//     p50 / p95 / max over the whole image, the observed cells and the others. When MODEL carries the
+//     projection uncertainty (clearfit calibrate without --no-uncertainty), a second line sets it beside the
+//     error: the largest σ and its pixel, σ and the error at the four image corners, and error / σ over the
+//     grid (σ bilinear from the model's nodes, for points at its distance; the error is the ray's, any distance).
 #include <clearfit/camera/board.hpp>
 #include <clearfit/camera/calibrate.hpp>
+#include <clearfit/camera/projection_uncertainty.hpp>
 #include <clearfit/camera/render_board.hpp>
 
 #include <opencv2/imgcodecs.hpp>
@@ -97,6 +101,28 @@ double pct(std::vector<double> v, double p) {
   return v[std::min(v.size() - 1, static_cast<std::size_t>(p * (v.size() - 1) + 0.5))];
 }
 
+/// The projection uncertainty beside the error against the truth (score's second line).
+void print_uncertainty(const ProjectionUncertainty& u, int W, int H, const std::vector<double>& d, const std::vector<int>& observed,
+                       const std::vector<Vec2>& corners, const std::vector<double>& at_corners) {
+  const auto samples = uncertainty_sample_pixels(u.layout, u.nx, u.ny, W, H);
+  const auto top = std::max_element(u.px.begin(), u.px.end());
+  const Vec2 top_at = samples[static_cast<std::size_t>(top - u.px.begin())];
+  std::printf("  uncertainty at %.0f mm: largest %.3f px at (%.0f, %.0f); image corners sigma", u.distance_mm, *top, top_at.x(), top_at.y());
+  for (const Vec2& c : corners) std::printf(" %.3f", u.at(c, W, H));
+  std::printf(" px, error");
+  for (double e : at_corners) std::printf(" %.3f", e);
+  const int nx = 64, ny = 48;
+  std::vector<double> obs, unobs;
+  for (int cy = 0; cy < ny; ++cy)
+    for (int cx = 0; cx < nx; ++cx) {
+      const std::size_t k = static_cast<std::size_t>(cy) * nx + cx;
+      const double sigma = u.at(Vec2((cx + 0.5) * W / nx - 0.5, (cy + 0.5) * H / ny - 0.5), W, H);
+      (observed[k] ? obs : unobs).push_back(std::isfinite(d[k]) ? d[k] / sigma : 1e9);
+    }
+  std::printf(" px | error/sigma: observed p50 %.2f p95 %.2f max %.2f, unobserved p50 %.2f p95 %.2f max %.2f\n", pct(obs, 0.5),
+              pct(obs, 0.95), pct(obs, 1), pct(unobs, 0.5), pct(unobs, 0.95), pct(unobs, 1));
+}
+
 int score(char** argv) {
   const CameraModel truth = read_cameramodel(argv[2]);
   const CameraModel model = read_cameramodel(argv[3]);
@@ -112,7 +138,10 @@ int score(char** argv) {
         const int cy = std::clamp(static_cast<int>((c.y() + 0.5) / H * ny), 0, ny - 1);
         ++observed[cy * nx + cx];
       }
-  const auto d = projection_difference_grid(truth, model, nx, ny, observed);
+  const std::vector<Vec2> corners{Vec2(0, 0), Vec2(W - 1.0, 0), Vec2(0, H - 1.0), Vec2(W - 1.0, H - 1.0)};
+  auto d = projection_difference_grid(truth, model, nx, ny, observed, corners);
+  const std::vector<double> at_corners(d.end() - 4, d.end());
+  d.resize(d.size() - 4);
   std::vector<double> all, obs, unobs;
   for (std::size_t k = 0; k < d.size(); ++k) {
     const double e = std::isfinite(d[k]) ? d[k] : 1e9;
@@ -122,6 +151,7 @@ int score(char** argv) {
   std::printf("%-40s whole p50 %.3f p95 %.3f max %.2f | observed (%zu cells) p50 %.3f p95 %.3f max %.3f | unobserved p50 %.3f p95 %.3f max %.2f\n",
               argv[3], pct(all, 0.5), pct(all, 0.95), pct(all, 1), obs.size(), pct(obs, 0.5), pct(obs, 0.95), pct(obs, 1),
               pct(unobs, 0.5), pct(unobs, 0.95), pct(unobs, 1));
+  if (const auto u = read_projection_uncertainty(argv[3])) print_uncertainty(*u, W, H, d, observed, corners, at_corners);
   return 0;
 }
 

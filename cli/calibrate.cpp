@@ -61,10 +61,10 @@ nlohmann::json report_json(const CalibrationResult& r, const CalibrationGrid& gr
   for (const auto& c : r.worst_corners) worst.push_back(corner_json(c, r));
   nlohmann::json unc = nullptr;
   if (!r.uncertainty_px.empty()) {
-    nlohmann::json cells = nlohmann::json::array();
+    nlohmann::json nodes = nlohmann::json::array();
     double max_px = 0;
     for (double u : r.uncertainty_px) {
-      cells.push_back(finite_or_null(u));
+      nodes.push_back(finite_or_null(u));
       max_px = std::max(max_px, u);
     }
     unc = {{"method",
@@ -73,9 +73,10 @@ nlohmann::json report_json(const CalibrationResult& r, const CalibrationGrid& gr
            {"what", "worst-direction standard deviation, px"},
            {"distance_mm", r.uncertainty_distance_mm},
            {"observed_pixel_sigma_px", r.observed_pixel_sigma_px},
-           {"cells_x", r.uncertainty_cells_x},
-           {"cells_y", r.uncertainty_cells_y},
-           {"cells_px", cells},
+           {"nodes_x", r.uncertainty_nodes_x},
+           {"nodes_y", r.uncertainty_nodes_y},
+           {"nodes", "a grid spanning the imager edge to edge, row-major: node i of n at pixel i (W - 1) / (n - 1)"},
+           {"nodes_px", nodes},
            {"centre_px", finite_or_null(r.uncertainty_center_px)},
            {"max_px", max_px}};
   }
@@ -118,11 +119,14 @@ void print_summary(const CalibrationResult& r, std::ostream& out) {
   }
   out << "\nfx " << r.model.intrinsics[0] << "  fy " << r.model.intrinsics[1] << "  cx "
       << r.model.intrinsics[2] << "  cy " << r.model.intrinsics[3] << "\n";
-  if (!r.uncertainty_px.empty())
+  if (!r.uncertainty_px.empty()) {
+    const auto worst = std::max_element(r.uncertainty_px.begin(), r.uncertainty_px.end());
+    const Vec2 at = uncertainty_sample_pixels(ProjectionUncertainty::Layout::nodes, r.uncertainty_nodes_x, r.uncertainty_nodes_y,
+                                              r.model.width, r.model.height)[static_cast<std::size_t>(worst - r.uncertainty_px.begin())];
     out << "projection uncertainty at " << std::setprecision(4) << r.uncertainty_distance_mm << " mm: centre "
-        << r.uncertainty_center_px << " px, worst over the image "
-        << *std::max_element(r.uncertainty_px.begin(), r.uncertainty_px.end()) << " px (noise "
-        << r.observed_pixel_sigma_px << " px)\n";
+        << r.uncertainty_center_px << " px, worst over the image " << *worst << " px at pixel (" << at.x() << ", " << at.y()
+        << ") (noise " << r.observed_pixel_sigma_px << " px)\n";
+  }
   out << "solve " << std::setprecision(3) << r.solve_seconds << " s"
       << (r.uncertainty_px.empty()
               ? ""
@@ -175,13 +179,13 @@ std::vector<std::string> write_calibration(const CalibrateArgs& a, const Calibra
                                            const BoardViews& views, const std::optional<Board>& board) {
   std::vector<std::string> written;
   try {
-    // The projection uncertainty travels with the model (projection_uncertainty.hpp) when every cell has one.
+    // The projection uncertainty travels with the model (projection_uncertainty.hpp) when every node has one.
     const bool uncertainty = !result.uncertainty_px.empty() &&
                              std::all_of(result.uncertainty_px.begin(), result.uncertainty_px.end(), [](double v) { return v >= 0; });
     if (uncertainty)
       write_cameramodel(result.model,
-                        ProjectionUncertainty{result.uncertainty_cells_x, result.uncertainty_cells_y, result.uncertainty_distance_mm,
-                                              result.uncertainty_px},
+                        ProjectionUncertainty{result.uncertainty_nodes_x, result.uncertainty_nodes_y, result.uncertainty_distance_mm,
+                                              result.uncertainty_px, ProjectionUncertainty::Layout::nodes},
                         a.out);
     else
       write_cameramodel(result.model, a.out);

@@ -7,7 +7,9 @@
 # projection against the true lens over a 64 x 48 grid (camera rotation fitted
 # over the cells with corners): p50 / p95 / max over the whole image, the
 # cells with corners and the others.
-#   scripts/bench-widelens.sh BUILD_DIR [seeds="4 5 6 7"] [out=/tmp/clearfit-widelens]
+#   scripts/bench-widelens.sh BUILD_DIR [seeds="4 5 6 7"] [out=/tmp/clearfit-widelens] [uncertainty]
+# With `uncertainty`, clearfit's model carries its projection uncertainty map (the calibration takes longer)
+# and the score's second line sets it beside the error: sigma and the error at the image corners.
 # (build first: cmake --build BUILD_DIR --target clearfit widelens_bench; needs -DCLEARFIT_BUILD_BENCHMARKS=ON)
 # The lens: an equidistant fisheye (r = f theta, f 655 px) as OPENCV8 (bench/widelens_bench.cpp);
 # 30 views, boards centred anywhere, 350-900 mm, at least 60 % of their corners in the image and none beyond
@@ -17,6 +19,8 @@ set -u
 build=$(realpath "${1:?usage: scripts/bench-widelens.sh BUILD_DIR [seeds] [out]}")
 seeds=${2:-"4 5 6 7"}
 out=${3:-/tmp/clearfit-widelens}
+uncertainty=--no-uncertainty
+[ "${4:-}" = uncertainty ] && uncertainty=
 bench=$build/bench/widelens_bench
 cf=$build/cli/clearfit
 for s in $seeds; do
@@ -27,7 +31,7 @@ for s in $seeds; do
   "$cf" detect --board board.yaml images --out raw.vnl --quiet > /dev/null 2>&1 || exit 2
   awk 'NR==FNR{if(FNR>1 && $2!="-") n[$1]++; next} FNR==1{print; next}
        {if(n[$1]+0>=60) print; else if(!s[$1]++) print $1" - - -"}' raw.vnl raw.vnl > corners.vnl
-  "$cf" calibrate --board board.yaml images --out clearfit.cameramodel --no-uncertainty > clearfit.log 2>&1
+  "$cf" calibrate --board board.yaml images --out clearfit.cameramodel $uncertainty > clearfit.log 2>&1
   "$cf" calibrate --board board.yaml images --out mrcal-sized.cameramodel --no-uncertainty \
     --mrcal-regularization > mrcal-sized.log 2>&1
   mkdir -p mrcal

@@ -5,6 +5,7 @@
 #include "mrcal_optimize_api.hpp"
 
 #include <clearfit/camera/calibrate.hpp>
+#include <clearfit/camera/projection_uncertainty.hpp>
 #include <clearfit/error.hpp>
 #include <clearfit/format.hpp>
 
@@ -213,8 +214,8 @@ void CalibrationOptions::validate() const {
     fail("uncertainty_distance_mm", significant_digits(uncertainty_distance_mm, 3), "must be >= 0");
   if (coverage_cells_x < 1 || coverage_cells_y < 1)
     fail("coverage_cells", std::to_string(coverage_cells_x), "must be >= 1");
-  if (uncertainty_cells_x < 1 || uncertainty_cells_y < 1)
-    fail("uncertainty_cells", std::to_string(uncertainty_cells_x), "must be >= 1");
+  if (uncertainty_nodes_x < 2 || uncertainty_nodes_y < 2)
+    fail("uncertainty_nodes", std::to_string(std::min(uncertainty_nodes_x, uncertainty_nodes_y)), "must be >= 2 (the image's edges)");
   if (min_views < 1) fail("min_views", std::to_string(min_views), "must be >= 1");
   if (!(max_grid_inconsistency > 0 && max_grid_inconsistency <= 1))
     fail("max_grid_inconsistency", significant_digits(max_grid_inconsistency, 3), "must be in (0, 1]");
@@ -658,7 +659,8 @@ void check_determined(const CalibrationResult& res, const CalibrationOptions& op
   }
 }
 
-/// The projection uncertainty (mrcal's method): the state covariance through dq/db at cell centres.
+/// The projection uncertainty (mrcal's method): the state covariance through dq/db at the nodes of a grid
+/// spanning the imager, and at its centre.
 void projection_uncertainty(const detail::BoardProblem& problem, detail::Selection usel, const CalibrationOptions& options,
                             double median_distance, int W, int H, CalibrationResult& res) {
   const auto progress = [&](const std::string& s) {
@@ -690,15 +692,12 @@ void projection_uncertainty(const detail::BoardProblem& problem, detail::Selecti
   const Eigen::MatrixXd Ainv_JobsT = ldlt.solve(pj.J.topRows(nb).transpose());  // Nstate x nb
   const Eigen::MatrixXd covariance = Ainv_JobsT * Ainv_JobsT.transpose();       // packed, / sigma^2
 
-  res.uncertainty_cells_x = options.uncertainty_cells_x;
-  res.uncertainty_cells_y = options.uncertainty_cells_y;
+  res.uncertainty_nodes_x = options.uncertainty_nodes_x;
+  res.uncertainty_nodes_y = options.uncertainty_nodes_y;
   res.uncertainty_distance_mm =
       options.uncertainty_distance_mm > 0 ? options.uncertainty_distance_mm : median_distance;
-  std::vector<Vec2> q;
-  for (int cy = 0; cy < res.uncertainty_cells_y; ++cy)
-    for (int cx = 0; cx < res.uncertainty_cells_x; ++cx)
-      q.emplace_back((cx + 0.5) * W / res.uncertainty_cells_x - 0.5,
-                     (cy + 0.5) * H / res.uncertainty_cells_y - 0.5);
+  std::vector<Vec2> q = uncertainty_sample_pixels(ProjectionUncertainty::Layout::nodes, res.uncertainty_nodes_x,
+                                                   res.uncertainty_nodes_y, W, H);
   q.emplace_back(0.5 * (W - 1), 0.5 * (H - 1));
   const std::size_t nq = q.size();
   std::vector<Vec3> p_cam = res.model.unproject(q);

@@ -14,7 +14,7 @@
 namespace clearfit {
 
 std::vector<double> projection_difference_grid(const CameraModel& a, const CameraModel& b, int nx, int ny,
-                                               const std::vector<int>& fit_weights) {
+                                               const std::vector<int>& fit_weights, const std::vector<Vec2>& also_at) {
   if (nx < 1 || ny < 1) throw std::invalid_argument("projection_difference_grid: nx, ny must be >= 1");
   if (!fit_weights.empty() && fit_weights.size() != static_cast<std::size_t>(nx) * ny)
     throw std::invalid_argument("projection_difference_grid: fit_weights must have nx * ny entries");
@@ -22,11 +22,12 @@ std::vector<double> projection_difference_grid(const CameraModel& a, const Camer
   for (int cy = 0; cy < ny; ++cy)
     for (int cx = 0; cx < nx; ++cx)
       q.emplace_back((cx + 0.5) * a.width / nx - 0.5, (cy + 0.5) * a.height / ny - 0.5);
+  q.insert(q.end(), also_at.begin(), also_at.end());
   std::vector<Vec3> rays = a.unproject(q);
   if (!fit_weights.empty()) {
     const std::vector<Vec3> rays_b = b.unproject(q);
     Eigen::Matrix3d cov = Eigen::Matrix3d::Zero();
-    for (std::size_t k = 0; k < q.size(); ++k)
+    for (std::size_t k = 0; k < fit_weights.size(); ++k)
       if (fit_weights[k] > 0 && rays[k].allFinite() && rays_b[k].allFinite())
         cov += double(fit_weights[k]) * rays_b[k].normalized() * rays[k].normalized().transpose();
     const Eigen::JacobiSVD<Eigen::Matrix3d> svd(cov, Eigen::ComputeFullU | Eigen::ComputeFullV);

@@ -128,29 +128,40 @@ TEST_F(CameraFiles, WriteReadRoundTripIsExact) {
 
 // The projection uncertainty's keys (projection_uncertainty.hpp): written with the model, read back exactly,
 // skipped by mrcal's C reader (read_cameramodel) and by mrcal's Python reader; a model without them has none;
-// some of the keys without the others, or a wrong count, is refused naming the key.
+// some of the keys without the others, both grids, or a wrong count, is refused naming the key.
 TEST_F(CameraFiles, ProjectionUncertaintyTravelsWithTheModel) {
   const CameraModel m = opencv8();
   const ProjectionUncertainty u{3, 2, 412.5, {0.11, 0.2, 0.35, 0.1, 0.05, 1.0 / 3}};
+  EXPECT_EQ(u.layout, ProjectionUncertainty::Layout::nodes);
   const auto path = dir_ / "u.cameramodel";
   write_cameramodel(m, u, path);
   const CameraModel back = read_cameramodel(path);
   EXPECT_EQ(back.intrinsics, m.intrinsics);
   const auto read = read_projection_uncertainty(path);
   ASSERT_TRUE(read);
-  EXPECT_EQ(read->cells_x, 3);
-  EXPECT_EQ(read->cells_y, 2);
+  EXPECT_EQ(read->layout, ProjectionUncertainty::Layout::nodes);
+  EXPECT_EQ(read->nx, 3);
+  EXPECT_EQ(read->ny, 2);
   EXPECT_EQ(read->distance_mm, 412.5);
   EXPECT_EQ(read->px, u.px);  // bit for bit
-  // At the cell centres ((c + 0.5)·W/n − 0.5) the values; halfway between two centres their mean; beyond the
-  // outer centres the nearest.
+  // The nodes span the imager edge to edge (node i of n at i·(W − 1)/(n − 1)): at them the values, the image's
+  // corner pixels included; halfway between two nodes their mean; outside the imager the nearest edge's.
   const double W = m.width, H = m.height;
-  auto centre = [&](double cx, double cy) { return Vec2((cx + 0.5) * W / 3 - 0.5, (cy + 0.5) * H / 2 - 0.5); };
-  for (int cy = 0; cy < 2; ++cy)
-    for (int cx = 0; cx < 3; ++cx) EXPECT_NEAR(read->at(centre(cx, cy), m.width, m.height), u.px[cy * 3 + cx], 1e-12);
-  EXPECT_NEAR(read->at(centre(0.5, 0), m.width, m.height), (0.11 + 0.2) / 2, 1e-12);
-  EXPECT_NEAR(read->at(centre(2, 0.5), m.width, m.height), (0.35 + 1.0 / 3) / 2, 1e-12);
+  auto node = [&](double ix, double iy) { return Vec2(ix * (W - 1) / 2, iy * (H - 1)); };
+  const auto pixels = uncertainty_sample_pixels(ProjectionUncertainty::Layout::nodes, 3, 2, m.width, m.height);
+  ASSERT_EQ(pixels.size(), 6u);
+  EXPECT_EQ(pixels[0], Vec2(0, 0));
+  EXPECT_EQ(pixels[5], Vec2(W - 1, H - 1));
+  for (int iy = 0; iy < 2; ++iy)
+    for (int ix = 0; ix < 3; ++ix) {
+      EXPECT_NEAR((pixels[iy * 3 + ix] - node(ix, iy)).norm(), 0, 1e-12);
+      EXPECT_NEAR(read->at(node(ix, iy), m.width, m.height), u.px[iy * 3 + ix], 1e-12);
+    }
+  EXPECT_NEAR(read->at(node(0.5, 0), m.width, m.height), (0.11 + 0.2) / 2, 1e-12);
+  EXPECT_NEAR(read->at(node(2, 0.5), m.width, m.height), (0.35 + 1.0 / 3) / 2, 1e-12);
+  EXPECT_NEAR(read->at(node(1.5, 0.25), m.width, m.height), 0.75 * (0.2 + 0.35) / 2 + 0.25 * (0.05 + 1.0 / 3) / 2, 1e-12);
   EXPECT_NEAR(read->at(Vec2(-0.5, -0.5), m.width, m.height), 0.11, 1e-12);
+  EXPECT_NEAR(read->at(Vec2(W - 0.5, H - 0.5), m.width, m.height), 1.0 / 3, 1e-12);
   EXPECT_DOUBLE_EQ(read->largest(), 1.0 / 3 > 0.35 ? 1.0 / 3 : 0.35);
   write_cameramodel(m, dir_ / "plain.cameramodel");
   EXPECT_FALSE(read_projection_uncertainty(dir_ / "plain.cameramodel"));
@@ -161,6 +172,8 @@ TEST_F(CameraFiles, ProjectionUncertaintyTravelsWithTheModel) {
   }
   std::ifstream in(path);
   const std::string text((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  EXPECT_NE(text.find("'clearfit_uncertainty_nodes': [ 3, 2, ]"), std::string::npos) << text;
+  EXPECT_EQ(text.find("clearfit_uncertainty_cells"), std::string::npos) << text;
   auto refused = [&](const std::string& from, const std::string& to, const std::string& key) {
     std::string bad = text;
     bad.replace(bad.find(from), from.size(), to);
@@ -173,8 +186,62 @@ TEST_F(CameraFiles, ProjectionUncertaintyTravelsWithTheModel) {
     }
   };
   refused("'clearfit_uncertainty_distance_mm'", "'other_key'", "clearfit_uncertainty_distance_mm");
+  refused("'clearfit_uncertainty_nodes'", "'other_key'", "clearfit_uncertainty_nodes");
   refused("[ 3, 2, ]", "[ 4, 2, ]", "clearfit_uncertainty_px");
+  refused("[ 3, 2, ]", "[ 6, 1, ]", "clearfit_uncertainty_nodes");  // one node cannot span the image's height
   refused("'clearfit_uncertainty_px': [ 0.11", "'clearfit_uncertainty_px': [ -0.11", "clearfit_uncertainty_px");
+  refused("'clearfit_uncertainty_distance_mm'", "'clearfit_uncertainty_cells': [ 3, 2, ],\n    'clearfit_uncertainty_distance_mm'",
+          "one grid");
+  // The writer refuses a grid of nodes that cannot span the imager.
+  EXPECT_THROW(write_cameramodel(m, ProjectionUncertainty{1, 1, 100, {0.1}}, dir_ / "one.cameramodel"), std::invalid_argument);
+}
+
+// Models written before the nodes carry 'clearfit_uncertainty_cells': values at the centres of cells
+// ((c + 0.5)·W/n − 0.5). They are read as before: the values at the centres, bilinear between them, the
+// nearest beyond the outer centres (the image's edges and corners take the outer centres' values); and
+// written back in the same layout (clearfit simulate --scale rewrites the model it was given).
+TEST_F(CameraFiles, OlderModelsWithCellsReadAsBefore) {
+  const CameraModel m = opencv8();
+  const auto path = text_file("cells.cameramodel", "");
+  write_cameramodel(m, path);
+  std::string text;
+  {
+    std::ifstream in(path);
+    text.assign(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+  }
+  text.insert(text.rfind('}'), "    'clearfit_uncertainty_cells': [ 3, 2, ],\n    'clearfit_uncertainty_distance_mm': 412.5,\n"
+                               "    'clearfit_uncertainty_px': [ 0.11, 0.2, 0.35, 0.1, 0.05, 0.3333333333333333, ],\n");
+  text_file("cells.cameramodel", text);
+  const auto read = read_projection_uncertainty(path);
+  ASSERT_TRUE(read);
+  EXPECT_EQ(read->layout, ProjectionUncertainty::Layout::cells);
+  EXPECT_EQ(read->nx, 3);
+  EXPECT_EQ(read->ny, 2);
+  const std::vector<double> px{0.11, 0.2, 0.35, 0.1, 0.05, 1.0 / 3};
+  EXPECT_EQ(read->px, px);
+  const double W = m.width, H = m.height;
+  auto centre = [&](double cx, double cy) { return Vec2((cx + 0.5) * W / 3 - 0.5, (cy + 0.5) * H / 2 - 0.5); };
+  const auto pixels = uncertainty_sample_pixels(ProjectionUncertainty::Layout::cells, 3, 2, m.width, m.height);
+  for (int cy = 0; cy < 2; ++cy)
+    for (int cx = 0; cx < 3; ++cx) {
+      EXPECT_NEAR((pixels[cy * 3 + cx] - centre(cx, cy)).norm(), 0, 1e-12);
+      EXPECT_NEAR(read->at(centre(cx, cy), m.width, m.height), px[cy * 3 + cx], 1e-12);
+    }
+  EXPECT_NEAR(read->at(centre(0.5, 0), m.width, m.height), (0.11 + 0.2) / 2, 1e-12);
+  EXPECT_NEAR(read->at(centre(2, 0.5), m.width, m.height), (0.35 + 1.0 / 3) / 2, 1e-12);
+  EXPECT_NEAR(read->at(Vec2(-0.5, -0.5), m.width, m.height), 0.11, 1e-12);
+  EXPECT_NEAR(read->at(Vec2(0, 0), m.width, m.height), 0.11, 1e-12);
+  EXPECT_NEAR(read->at(Vec2(W - 1, H - 1), m.width, m.height), 1.0 / 3, 1e-12);
+  const auto again = dir_ / "again.cameramodel";
+  write_cameramodel(m, *read, again);
+  const auto back = read_projection_uncertainty(again);
+  ASSERT_TRUE(back);
+  EXPECT_EQ(back->layout, ProjectionUncertainty::Layout::cells);
+  EXPECT_EQ(back->px, px);
+  // A cell may be alone on its axis (its value then holds across it).
+  const ProjectionUncertainty one{1, 1, 100, {0.25}, ProjectionUncertainty::Layout::cells};
+  write_cameramodel(m, one, dir_ / "one.cameramodel");
+  EXPECT_NEAR(read_projection_uncertainty(dir_ / "one.cameramodel")->at(Vec2(W - 1, 0), m.width, m.height), 0.25, 1e-12);
 }
 
 TEST_F(CameraFiles, OurReaderReadsMrcalPythonFileWithIdenticalValues) {
@@ -275,7 +342,7 @@ TEST(CameraModel, ValidateInMemoryModels) {
   m.height = -1;
   EXPECT_THROW(m.validate(), InputError);
   // Both writers refuse it naming the file, the key and the defect, and write nothing.
-  const ProjectionUncertainty u{1, 1, 100, {0.1}};
+  const ProjectionUncertainty u{2, 2, 100, {0.1, 0.1, 0.1, 0.1}};
   for (const bool with_uncertainty : {false, true}) {
     SCOPED_TRACE(with_uncertainty ? "with the projection uncertainty" : "the model alone");
     try {

@@ -17,6 +17,7 @@
 #include <algorithm>
 #include <cmath>
 #include <cstring>
+#include <functional>
 #include <map>
 #include <sstream>
 
@@ -110,6 +111,24 @@ class AssessCli : public CliTest {
     std::vector<std::string> args{"assess", "scene.yaml", "--quiet", "--no-cache", "--no-html"};
     args.insert(args.end(), extra.begin(), extra.end());
     return run_clearfit(args, work(), root() / "capture", 120);
+  }
+  /// The report of `clearfit assess` on the captures with a camera model whose projection uncertainty keys are
+  /// `keys` (the captures' own removed), and the imager's width.
+  std::pair<nlohmann::json, double> assess_with_uncertainty(const std::string& keys, const std::string& name) {
+    std::string model;
+    {
+      std::istringstream in(read_text(captures() / "camera.cameramodel"));
+      for (std::string line; std::getline(in, line);)
+        if (line.find("'clearfit_uncertainty_") == std::string::npos) model += line + "\n";
+    }
+    model.insert(model.rfind('}'), keys);
+    write_text(work() / (name + ".cameramodel"), model);
+    const auto size_at = model.find('[', model.find("'imagersize'"));
+    const double width = std::stod(model.substr(size_at + 1));
+    scene(two_captures(), "", (work() / (name + ".cameramodel")).string());
+    const RunResult r = assess({"--out", name});
+    EXPECT_EQ(r.exit_code, 0) << r;
+    return {nlohmann::json::parse(read_text(work() / name / "report.json")), width};
   }
   void expect_refused(const RunResult& r, const std::string& needle) {
     EXPECT_EQ(r.exit_code, 2) << r;
@@ -360,32 +379,14 @@ TEST_F(AssessCli, IntrinsicsUncertaintyAddsItsTermWhereThePressureIsSteep) {
   EXPECT_LT(flat, 0.03);
 }
 
-// A calibration whose boards did not reach the right of the view: the captures' camera model with four cells
-// of projection uncertainty side by side, 0.05 px in the left three and 3 px in the rightmost (σ_q linear in x
-// between the cells' centres at (c + 0.5)·W/4 − 0.5, constant beyond the outer ones). The band spans the
-// image's centre and reaches into the last cell's slope: the report names the largest σ_q over the seen
-// contact surface at its pixel (the closed form there), the share above 0.5 px, and warns with the figure
-// and what to do.
-TEST_F(AssessCli, WarnsWhereThePartLiesOutsideTheCalibratedView) {
-  std::string model;
-  {
-    std::istringstream in(read_text(captures() / "camera.cameramodel"));
-    for (std::string line; std::getline(in, line);)
-      if (line.find("'clearfit_uncertainty_") == std::string::npos) model += line + "\n";
-  }
-  model.insert(model.rfind('}'), "    'clearfit_uncertainty_cells': [ 4, 1, ],\n    'clearfit_uncertainty_distance_mm': 100,\n"
-                                 "    'clearfit_uncertainty_px': [ 0.05, 0.05, 0.05, 3, ],\n");
-  write_text(work() / "uncovered.cameramodel", model);
-  const auto size_at = model.find('[', model.find("'imagersize'"));
-  const double width = std::stod(model.substr(size_at + 1));
-  scene(two_captures(), "", (work() / "uncovered.cameramodel").string());
-  const RunResult r = assess();
-  ASSERT_EQ(r.exit_code, 0) << r;
-  const auto report = nlohmann::json::parse(read_text(work() / "out" / "report.json"));
+/// σ_q is 0.05 px up to the third of four grid points across and rises linearly to 3 px at the fourth; the band
+/// spans the image's centre and reaches into that slope: the report names the largest σ_q over the seen contact
+/// surface at its pixel (the closed form there, `grid_x` giving a pixel's x in grid points from the first), the
+/// share above 0.5 px, and warns with the figure and what to do.
+void expect_unsure_right(const nlohmann::json& report, double width, const std::function<double(double)>& grid_x) {
   const auto& contact = report["calibration"]["camera_intrinsics"]["contact"];
   const double largest = contact["largest_px"].get<double>(), x = contact["at_pixel"][0].get<double>();
-  const double t = std::clamp((x + 0.5) * 4 / width - 0.5, 0.0, 3.0);  // in cells from the first centre
-  const double expected = 0.05 + 2.95 * std::max(0.0, t - 2);          // 0.05 up to the third centre, 3 at the fourth
+  const double expected = 0.05 + 2.95 * std::max(0.0, std::clamp(grid_x(x), 0.0, 3.0) - 2);
   std::printf("largest sigma_q %.3f px at x %.1f of %.0f px (closed form %.3f), median %.3f px, %.1f %% above %.2f px\n", largest, x,
               width, expected, contact["median_px"].get<double>(), 100 * contact["fraction_above_threshold"].get<double>(),
               contact["threshold_px"].get<double>());
@@ -405,6 +406,28 @@ TEST_F(AssessCli, WarnsWhereThePartLiesOutsideTheCalibratedView) {
   std::snprintf(figure, sizeof figure, "reaches %.2f px", largest);
   EXPECT_NE(warning.find(figure), std::string::npos) << warning;
   EXPECT_NE(warning.find("calibrate again"), std::string::npos) << warning;
+}
+
+// A calibration whose boards did not reach the right of the view, as `clearfit calibrate` writes it: the
+// captures' camera model with 4 x 2 nodes of projection uncertainty spanning the imager, 0.05 px at the left
+// three columns and 3 px at the right edge (σ_q linear in x between the nodes at i·(W − 1)/3).
+TEST_F(AssessCli, WarnsWhereThePartLiesOutsideTheCalibratedView) {
+  const auto [report, width] = assess_with_uncertainty(
+      "    'clearfit_uncertainty_nodes': [ 4, 2, ],\n    'clearfit_uncertainty_distance_mm': 100,\n"
+      "    'clearfit_uncertainty_px': [ 0.05, 0.05, 0.05, 3, 0.05, 0.05, 0.05, 3, ],\n",
+      "nodes");
+  expect_unsure_right(report, width, [w = width](double x) { return x * 3 / (w - 1); });  // node i at i·(W − 1)/3
+}
+
+// The same with a model written before the nodes: four cells side by side, 0.05 px in the left three and 3 px
+// in the rightmost (σ_q linear in x between the cells' centres at (c + 0.5)·W/4 − 0.5, constant beyond the
+// outer ones), read as before.
+TEST_F(AssessCli, WarnsWhereThePartLiesOutsideTheCalibratedViewOfAnOlderModel) {
+  const auto [report, width] = assess_with_uncertainty(
+      "    'clearfit_uncertainty_cells': [ 4, 1, ],\n    'clearfit_uncertainty_distance_mm': 100,\n"
+      "    'clearfit_uncertainty_px': [ 0.05, 0.05, 0.05, 3, ],\n",
+      "cells");
+  expect_unsure_right(report, width, [w = width](double x) { return (x + 0.5) * 4 / w - 0.5; });  // centre c at (c + 0.5)·W/4 − 0.5
 }
 
 TEST_F(AssessCli, WithoutCalibrationReportsTheSignal) {

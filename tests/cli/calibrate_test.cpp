@@ -5,6 +5,7 @@
 
 #include <clearfit/camera/board.hpp>
 #include <clearfit/camera/calibrate.hpp>
+#include <clearfit/camera/projection_uncertainty.hpp>
 #include <clearfit/camera/render_board.hpp>
 
 #include <nlohmann/json.hpp>
@@ -71,7 +72,11 @@ TEST_F(Calibrate, CornersFileToModelAndReport) {
   EXPECT_EQ(report["schema"], "clearfit.calibration/1");
   EXPECT_NEAR(report["rms_px"].get<double>(), 0.25, 0.02);
   EXPECT_EQ(report["views"].size(), 20u);
-  EXPECT_EQ(report["uncertainty"]["cells_px"].size(), 16u * 12u);
+  EXPECT_EQ(report["uncertainty"]["nodes_px"].size(), 17u * 13u);
+  const auto u = read_projection_uncertainty(work() / "cam.cameramodel");
+  ASSERT_TRUE(u);
+  EXPECT_EQ(u->layout, ProjectionUncertainty::Layout::nodes);
+  EXPECT_EQ(u->px, report["uncertainty"]["nodes_px"].get<std::vector<double>>());
   EXPECT_GT(report["uncertainty"]["centre_px"].get<double>(), 0.0);
   EXPECT_EQ(report["coverage"]["corners"].size(), 48u);
   const CameraModel ours = read_cameramodel(work() / "cam.cameramodel");

@@ -58,11 +58,11 @@ TEST_F(Simulate, WritesCapturesTruthAndPresses) {
 }
 
 // Rendered at half resolution, the scaled camera model keeps the projection uncertainty, each σ scaled as its
-// pixels are (the scaled model's fx over the original's), the cells and distance as they were.
+// pixels are (the scaled model's fx over the original's), the grid (here an older model's cells) and distance as they were.
 TEST_F(Simulate, ScaledCameraKeepsItsProjectionUncertaintyInItsPixels) {
   const CameraModel cam = read_cameramodel(work() / "cam.cameramodel");
   ProjectionUncertainty u;
-  u.cells_x = 2, u.cells_y = 1, u.distance_mm = 60, u.px = {0.4, 0.8};
+  u.nx = 2, u.ny = 1, u.distance_mm = 60, u.px = {0.4, 0.8}, u.layout = ProjectionUncertainty::Layout::cells;
   write_cameramodel(cam, u, work() / "cam.cameramodel");
   scene(kGood);
   const RunResult r = run({"simulate", "scene.yaml", "--out", "sim", "--no-cache", "--no-presses", "--scale", "0.5", "--quiet"});
@@ -72,8 +72,9 @@ TEST_F(Simulate, ScaledCameraKeepsItsProjectionUncertaintyInItsPixels) {
   EXPECT_NEAR(ratio, 0.5, 1e-12);
   const auto v = read_projection_uncertainty(work() / "sim" / "camera.cameramodel");
   ASSERT_TRUE(v.has_value()) << read_text(work() / "sim" / "camera.cameramodel");
-  EXPECT_EQ(v->cells_x, 2);
-  EXPECT_EQ(v->cells_y, 1);
+  EXPECT_EQ(v->layout, ProjectionUncertainty::Layout::cells);
+  EXPECT_EQ(v->nx, 2);
+  EXPECT_EQ(v->ny, 1);
   EXPECT_EQ(v->distance_mm, 60);
   ASSERT_EQ(v->px.size(), 2u);
   for (int k = 0; k < 2; ++k) EXPECT_NEAR(v->px[k], ratio * u.px[k], 1e-12) << k;

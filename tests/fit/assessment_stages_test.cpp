@@ -161,7 +161,7 @@ TEST(AssessmentStages, IntrinsicsTermIsSigmaThroughTheInverseOfTheMapsJacobian) 
   // ‖A‖_F² = 1/kx² + s²/(kx·ky)² + 1/ky²; y = a·u + b·v: Aᵀ∇y = (a/kx, −s·a/(kx·ky) + b/ky).
   const double kx = 8, ky = 5, s = 2, a = 0.03, b = -0.01;
   const int W = 400, H = 300;
-  const ProjectionUncertainty u{2, 1, 100.0, {0.2, 1.0}};
+  const ProjectionUncertainty u{2, 1, 100.0, {0.2, 1.0}, ProjectionUncertainty::Layout::cells};
   const InverseMap inv = affine_map(40, 30, 0.25, kx, ky, s, 60, 80);
   ChartField y = field(grid(40, 30, 0.25), a, b);
   y.value[y.grid.index(10, 10)] = kNaN;  // unseen: no signal term there, and one-sided differences beside it
@@ -195,7 +195,7 @@ TEST(AssessmentStages, ProjectionSigmaOverTheSeenContactWarnsWhereTheCalibration
   // cell is unsure: σ_q rises linearly from 0.1 px (x ≤ 49.5) to 3 px (x ≥ 149.5). Only columns i < 30 are
   // seen (the signal is defined there), so the largest σ_q is at column 29, x = 60 + 8·29·0.25 = 118.
   const int W = 200, H = 100;
-  const ProjectionUncertainty u{2, 1, 100.0, {0.1, 3.0}};
+  const ProjectionUncertainty u{2, 1, 100.0, {0.1, 3.0}, ProjectionUncertainty::Layout::cells};
   const InverseMap inv = affine_map(40, 10, 0.25, 8, 8, 0, 60, 30);
   ChartField y = field(grid(40, 10, 0.25), 0.01, 0);
   for (int j = 0; j < 10; ++j)

@@ -4,11 +4,13 @@
 #   ours:    lensmodel, intrinsics, imagersize as mrcal.cameramodel reads them
 #   mrcal:   intrinsics, rms_px (inlier corners, per coordinate), outliers,
 #            missing (corners given as missing)
-#   diff_px: mrcal.projection_diff(ours, mrcal) on a gx x gy grid (row-major),
-#            implied rotation fitted by mrcal, no uncertainty weighting
+#   diff_px: mrcal.projection_diff(ours, mrcal) at the gx x gy nodes of
+#            mrcal.sample_imager (row-major, edge to edge: node i of n at
+#            i (W-1)/(n-1), the image corners included), implied rotation
+#            fitted by mrcal, no uncertainty weighting
 #   uncertainty_px: mrcal.projection_uncertainty of mrcal's model,
-#            worst-direction stdev, at the centres of the gx x gy cells, points
-#            at --distance, with --sigma as the observed pixel uncertainty
+#            worst-direction stdev, at the same nodes, points at --distance,
+#            with --sigma as the observed pixel uncertainty
 #   uncertainty_ours_px (with --solution S.json {intrinsics, frames (rt
 #            cam_from_board per view), warp, weights (per corner, < 0 unused)}):
 #            the same, computed by mrcal's Python on OUR problem at OUR solution
@@ -23,7 +25,7 @@ import mrcal
 p = argparse.ArgumentParser()
 p.add_argument('--ours', required=True)
 p.add_argument('--mrcal', required=True)
-p.add_argument('--grid', type=int, nargs=2, default=(16, 12))
+p.add_argument('--grid', type=int, nargs=2, default=(17, 13))
 p.add_argument('--distance', type=float, required=True)
 p.add_argument('--sigma', type=float, required=True)
 p.add_argument('--solution')
@@ -45,9 +47,7 @@ rms = float(np.sqrt(np.mean(xb * xb)))
 
 diff = mrcal.projection_diff((ours, ref), gridn_width=gx, gridn_height=gy, use_uncertainties=False)[0]
 
-qx = (np.arange(gx) + 0.5) * W / gx - 0.5
-qy = (np.arange(gy) + 0.5) * H / gy - 0.5
-q = np.array([(u, v) for v in qy for u in qx])
+q = mrcal.sample_imager(gx, gy, W, H).reshape(-1, 2)  # the nodes projection_diff uses
 
 def uncertainty(model, sigma=a.sigma):
     v = mrcal.unproject(q, *model.intrinsics(), normalize=True)

@@ -65,8 +65,10 @@ struct CalibrationOptions {
   double uncertainty_distance_mm = 0;
   int coverage_cells_x = 8;  ///< coverage grid over the imager
   int coverage_cells_y = 6;
-  int uncertainty_cells_x = 16;  ///< uncertainty sampled at these cell centres
-  int uncertainty_cells_y = 12;
+  /// Uncertainty sampled at the nodes of a grid spanning the imager edge to edge, its corners included
+  /// (projection_uncertainty.hpp): node i of n at i·(W − 1)/(n − 1); odd counts put a node at the centre.
+  int uncertainty_nodes_x = 17;
+  int uncertainty_nodes_y = 13;
   /// Fewer usable views is an error; fewer than recommended_views a warning.
   int min_views = 3;
   int recommended_views = 10;
@@ -127,9 +129,9 @@ struct CalibrationResult {
   /// Number of inlier corners per coverage cell, row-major (cells_y rows).
   int coverage_cells_x = 0, coverage_cells_y = 0;
   std::vector<int> coverage;
-  /// Worst-direction standard deviation of projection (pixels) at the centres
-  /// of uncertainty cells, row-major; empty if not computed.
-  int uncertainty_cells_x = 0, uncertainty_cells_y = 0;
+  /// Worst-direction standard deviation of projection (pixels) at the nodes
+  /// (CalibrationOptions::uncertainty_nodes_x), row-major; empty if not computed.
+  int uncertainty_nodes_x = 0, uncertainty_nodes_y = 0;
   double uncertainty_distance_mm = 0;
   std::vector<double> uncertainty_px;
   double uncertainty_center_px = 0;    ///< at the imager centre
@@ -170,9 +172,10 @@ double projection_difference_px(const CameraModel& a, const CameraModel& b, cons
 /// the rotation that best aligns a's rays with b's rays over the cells of
 /// positive weight (Kabsch), as mrcal's projection_diff does: a camera frame
 /// calibrated from board views is defined only up to such a rotation, which
-/// the board poses absorb.
+/// the board poses absorb. `also_at`: pixels whose differences follow the
+/// grid's in the result (R still fitted over the grid), e.g. the image corners.
 std::vector<double> projection_difference_grid(const CameraModel& a, const CameraModel& b, int nx, int ny,
-                                               const std::vector<int>& fit_weights = {});
+                                               const std::vector<int>& fit_weights = {}, const std::vector<Vec2>& also_at = {});
 
 /// Synthetic board views: the true corners of `grid` seen by `truth` from
 /// random poses, plus Gaussian pixel noise. Used by tests and benchmarks.
