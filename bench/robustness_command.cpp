@@ -15,7 +15,7 @@
 #include <clearfit/error.hpp>
 #include <clearfit/geometry/import.hpp>
 #include <clearfit/geometry/shapes.hpp>
-#include <clearfit/npy.hpp>
+#include <clearfit/fit/simulate.hpp>
 #include <nlohmann/json.hpp>
 
 #include <Eigen/Core>
@@ -116,28 +116,6 @@ void render(const Settings& st, const Part& p, const fs::path& dir, const std::s
   if (run_clearfit(st, dir, args, &err) != 0) throw InputError((dir / "simulate.yaml").string(), "", "clearfit simulate failed: " + err);
 }
 
-/// Per-vertex Pearson correlation of vertices.csv's pressure_kpa with the truth, over contact vertices seen.
-double vertex_pearson(const fs::path& vertices_csv, const fs::path& truth_npy) {
-  const npy::Float32Array truth = npy::read_float32(truth_npy);
-  std::ifstream in(vertices_csv);
-  std::string line;
-  std::getline(in, line);  // vertex,x_mm,y_mm,z_mm,contact,seen,pressure_kpa,signal
-  double sa = 0, sb = 0, saa = 0, sbb = 0, sab = 0, n = 0;
-  while (std::getline(in, line)) {
-    std::vector<std::string> f;
-    std::stringstream s(line);
-    for (std::string c; std::getline(s, c, ',');) f.push_back(c);
-    if (f.size() < 7 || f[4] != "1" || f[5] != "1" || f[6].empty()) continue;
-    const std::size_t v = std::stoul(f[0]);
-    if (v >= truth.values.size() || !std::isfinite(truth.values[v])) continue;
-    const double a = std::stod(f[6]), b = truth.values[v];
-    sa += a, sb += b, saa += a * a, sbb += b * b, sab += a * b, n += 1;
-  }
-  if (n < 3) return NAN;
-  const double den = (saa - sa * sa / n) * (sbb - sb * sb / n);
-  return den > 0 ? (sab - sa * sb / n) / std::sqrt(den) : NAN;
-}
-
 struct Row {
   std::string part, effect, strength, corrections;
   bool refused = false;
@@ -190,7 +168,7 @@ Row assess(const Settings& st, const Part& p, const fs::path& dir, const fs::pat
   }
   for (const auto& m : measured) row.false_hotspots += nearest(m, expected) > 1.0;
   row.centroid_mm = any ? worst : NAN;
-  row.pearson = vertex_pearson(dir / out_name / "vertices.csv", caps / "truth_vertex_pressure.npy");
+  row.pearson = sim::vertex_pressure_pearson(dir / out_name / "vertices.csv", caps / "truth_vertex_pressure.npy");
   return row;
 }
 

@@ -67,6 +67,9 @@ void record_preset(const std::filesystem::path& truth_file, const SimulationSect
                  {"flicker", {{"amplitude", c.flicker_amplitude}, {"hz", c.flicker_hz}, {"drift_hz_per_s", fx.flicker_drift_hz_per_s}}},
                  {"glare", glare},
                  {"exposure", {{"steps", steps}, {"drift_per_s", fx.drift_per_s}}},
+                 {"video", {{"format", sim::to_string(spec.format)}, {"crf", spec.timeline.crf}}},
+                 {"skin_motion", {{"slide_mm", {spec.skin_motion.slide_mm.x(), spec.skin_motion.slide_mm.y()}},
+                                  {"bulge_mm", spec.skin_motion.bulge_mm}, {"bulge_width_mm", spec.skin_motion.bulge_width_mm}}},
                  {"note", "the strengths rendered: the preset's, replaced by the keys the scene gives"}};
   const sim::SkinMotion& m = spec.skin_motion;
   if (m.any())

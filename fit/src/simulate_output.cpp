@@ -1,5 +1,7 @@
 // Calibration presses through the forward model, and the truth files.
 #include <clearfit/atomic_file.hpp>
+#include <clearfit/error.hpp>
+#include <clearfit/npy.hpp>
 #include <clearfit/fit/contact_mechanics.hpp>
 #include <clearfit/fit/simulate.hpp>
 
@@ -7,6 +9,8 @@
 
 #include <algorithm>
 #include <cmath>
+#include <fstream>
+#include <limits>
 #include <map>
 #include <numbers>
 #include <random>
@@ -331,6 +335,28 @@ void write_truth(const std::filesystem::path& dir, const PressureFieldSpec& spec
                     truth.pressure.value.data());
   write_npy_float32(dir / "truth_vertex_pressure.npy", {truth.vertex_pressure.size()}, truth.vertex_pressure.data());
   write_file_atomically(dir / "truth.json", j.dump(2) + "\n");
+}
+
+double vertex_pressure_pearson(const std::filesystem::path& vertices_csv, const std::filesystem::path& truth_vertex_npy, int* count) {
+  const std::vector<float> truth = npy::read_float32(truth_vertex_npy).values;
+  std::ifstream in(vertices_csv);
+  if (!in) throw InputError(vertices_csv.string(), "", "cannot be read");
+  std::string line;
+  std::getline(in, line);  // vertex,x_mm,y_mm,z_mm,contact,seen,pressure_kpa,...
+  double sa = 0, sb = 0, saa = 0, sbb = 0, sab = 0, n = 0;
+  while (std::getline(in, line)) {
+    std::vector<std::string> f;
+    std::stringstream row(line);
+    for (std::string c; std::getline(row, c, ',');) f.push_back(c);
+    if (f.size() < 7 || f[4] != "1" || f[5] != "1" || f[6].empty()) continue;
+    const std::size_t v = std::stoul(f[0]);
+    if (v >= truth.size() || !std::isfinite(truth[v])) continue;
+    const double a = std::stod(f[6]), b = truth[v];
+    sa += a, sb += b, saa += a * a, sbb += b * b, sab += a * b, n += 1;
+  }
+  if (count) *count = static_cast<int>(n);
+  const double den = (saa - sa * sa / n) * (sbb - sb * sb / n);
+  return n >= 3 && den > 0 ? (sab - sa * sb / n) / std::sqrt(den) : std::numeric_limits<double>::quiet_NaN();
 }
 
 }  // namespace clearfit::sim

@@ -119,6 +119,11 @@ TEST_F(Simulate, RealisticPresetResolvesAndSceneKeysOverride) {
   EXPECT_DOUBLE_EQ(p["exposure"]["steps"][0]["gain"][0].get<double>(), 1.03);
   EXPECT_TRUE(fs::exists(work() / "sim" / "truth_gains.csv")) << r;
   EXPECT_TRUE(fs::exists(work() / "sim" / "truth_glare_worn.npy")) << r;
+  // The skin slides and bulges (its truth written); the scene's `format: png` replaces the preset's H.264.
+  EXPECT_DOUBLE_EQ(p["skin_motion"]["slide_mm"][0].get<double>(), 0.2);
+  EXPECT_DOUBLE_EQ(p["skin_motion"]["bulge_mm"].get<double>(), 0.1);
+  EXPECT_TRUE(fs::exists(work() / "sim" / "truth_displacement.npy")) << r;
+  EXPECT_EQ(p["video"]["format"], "png");
   // The scene's keys win: one motion key, the glare list and the flicker amplitude; the rest stays the preset's.
   scene("  preset: realistic\n  motion: {tremor_px: 0}\n  glare: []\n  flicker: {amplitude: 0.01}\n" + base);
   r = run({"simulate", "scene.yaml", "--out", "sim2", "--no-cache", "--no-presses"});
@@ -130,6 +135,16 @@ TEST_F(Simulate, RealisticPresetResolvesAndSceneKeysOverride) {
   EXPECT_DOUBLE_EQ(p["flicker"]["drift_hz_per_s"].get<double>(), 0.2);
   EXPECT_EQ(p["glare"].size(), 0u);
   EXPECT_EQ(p["exposure"]["steps"].size(), 2u);
+  // Without a format key the preset films as a phone does: H.264 at CRF 23.
+  std::string no_format = base;
+  no_format.erase(no_format.find("  format: png\n"), std::string("  format: png\n").size());
+  scene("  preset: realistic\n" + no_format);
+  r = run({"simulate", "scene.yaml", "--out", "sim5", "--no-cache", "--no-presses"});
+  ASSERT_EQ(r.exit_code, 0) << r;
+  p = nlohmann::json::parse(read_text(work() / "sim5" / "truth.json"))["preset"];
+  EXPECT_EQ(p["video"]["format"], "h264");
+  EXPECT_EQ(p["video"]["crf"].get<int>(), 23);
+  EXPECT_TRUE(fs::exists(work() / "sim5" / "worn.mp4")) << r;
   // Without a preset: none, nothing added.
   scene(base);
   r = run({"simulate", "scene.yaml", "--out", "sim3", "--no-cache", "--no-presses"});

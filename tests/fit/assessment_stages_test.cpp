@@ -102,6 +102,11 @@ TEST(AssessmentStages, MostlyGlareIsRefusedNamingTheWorsePhase) {
   check_glare(g, base, worn, o, w);
   ASSERT_EQ(w.size(), 1u);
   EXPECT_NE(w[0].find("2 specular highlights masked (10.0 %"), std::string::npos) << w[0];
+  // The highlights with the fixed margin are weighed, not the tails of large ones (masked all the same).
+  g.fraction = 0.55, g.fraction_glare = 0.45;
+  EXPECT_NO_THROW(check_glare(g, base, worn, o, w));
+  g.fraction_glare = 0.52;
+  EXPECT_THROW(check_glare(g, base, worn, o, w), InputError);
 }
 
 // ---- Where on the skin each texel lies ----

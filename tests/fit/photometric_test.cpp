@@ -209,6 +209,50 @@ TEST(Glare, WithTheOutlineBandTheOutlineIsNotGlareAHighlightBesideItIs) {
   }
 }
 
+// A highlight fixed in the image (both phases) of σ 8 or 24 px on mottled skin: the light left at the mask's
+// edge should not depend on the highlight's size. Found pixel by pixel, its edge lies near 5 % of the skin's
+// green (the static score's floor, halved by the hysteresis); a fixed margin of 6 px brings the small one to
+// about 1 % but leaves the large one near 3 %: its tail is as wide as it is. A margin of 0.35 of its radius
+// leaves both near 1 % (1.06 and 1.19 %, seed 11).
+TEST(Glare, AHighlightsMarginGrowsWithItsSize) {
+  for (const double sigma : {8.0, 24.0}) {
+    std::mt19937 rng(11);
+    std::normal_distribution<float> n(0.f, 1.f);
+    const cv::Rect roi(0, 0, 320, 240);
+    PhaseAverage base, worn;
+    const cv::Mat seen(roi.size(), CV_8U, cv::Scalar(255));
+    const double peak = 0.1, cx = 160, cy = 120;  // w / G = 1/3 at its centre
+    for (PhaseAverage* p : {&base, &worn}) {
+      p->roi = roi;
+      p->mean = cv::Mat(roi.size(), CV_32F);
+      p->blue_half = cv::Mat(half_grid(roi.size()), CV_32F, cv::Scalar(0));
+      for (int y = 0; y < roi.height; ++y)
+        for (int x = 0; x < roi.width; ++x) {
+          const double skin = 0.3 * mottle(x, y), glare = peak * std::exp(-(std::pow(x - cx, 2) + std::pow(y - cy, 2)) / (2 * sigma * sigma));
+          p->mean.at<float>(y, x) = static_cast<float>((skin + glare) * (1 + 0.004 * n(rng)));
+          if (y % 2 == 0) p->blue_half.at<float>(y / 2, x / 2) += static_cast<float>(0.5 * (0.8 * skin + glare) * (1 + 0.006 * n(rng)));
+        }
+    }
+    // The radius (along the row through its centre) out to which the mask reaches, and the light left there.
+    auto reach = [&](const GlareOptions& o) {
+      const GlareMask g = detect_glare(base, worn, seen, o);
+      EXPECT_EQ(g.regions, 1) << "sigma " << sigma;
+      int r = 0;
+      while (cx + r + 1 < roi.width && g.mask.at<std::uint8_t>(static_cast<int>(cy), static_cast<int>(cx) + r + 1)) ++r;
+      return std::make_pair(r, peak / 0.3 * std::exp(-r * r / (2 * sigma * sigma)));
+    };
+    GlareOptions fixed;
+    fixed.tail_share = 0;
+    const auto [r_fixed, left_fixed] = reach(fixed);
+    const auto [r, left] = reach(GlareOptions{});
+    std::printf("highlight of sigma %.0f px: mask to %d px (light left %.2f %% of the skin), with the 6 px margin only %d px (%.2f %%)\n",
+                sigma, r, 100 * left, r_fixed, 100 * left_fixed);
+    EXPECT_LE(left, 0.015) << "sigma " << sigma;
+    if (sigma > 20) EXPECT_GT(left_fixed, 2 * left);  // what the fixed margin left
+    EXPECT_LT(r, 3.5 * sigma);                    // and not the whole view
+  }
+}
+
 TEST(Glare, SaturatedGlareIsMasked) {
   GlareScene s(0, 0, 4);
   cv::circle(s.worn.mean, {100, 40}, 6, cv::Scalar(1.0), -1);

@@ -36,6 +36,9 @@ struct GlareOptions {
   double saturation = 0.95;      ///< linear green or blue mean at or above this is glare
   double smooth_px = 1.5;        ///< Gaussian σ on the half-resolution grid
   int margin_px = 6;             ///< grown by this many camera pixels
+  /// ... or by this share of a region's radius (largest inside distance) where that is more (a highlight's faint tail reaches
+  /// farther the larger it is; glare.cpp grow_by_margin)
+  double tail_share = 0.35;
   /// The seen skin's outline: pixels this near an unseen one (camera px) hold skin and what lies beside the part
   /// in shares that change between the phases, as glare's colour does; they are left out of the smoothing and
   /// the noise and masked only when saturated (the margin covers them beside glare found farther in). Off (0) by
@@ -51,6 +54,7 @@ struct GlareMask {
   cv::Mat mask;            ///< CV_8U, roi size (aligned to the reference frame): 255 = glare
   cv::Rect roi;
   double fraction = 0;     ///< of the seen pixels
+  double fraction_glare = 0;  ///< of the seen pixels, the highlights with the fixed margin only (what "mostly glare" weighs)
   double fraction_baseline = 0, fraction_worn = 0;  ///< seen pixels with glare in that phase (static, saturated, or appearing in it)
   int regions = 0;
   double blue_over_green = 0;   ///< c: the skin's linear B/G (both phases' median)

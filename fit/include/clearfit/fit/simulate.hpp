@@ -374,6 +374,11 @@ void write_truth(const std::filesystem::path& dir, const PressureFieldSpec& spec
                  const SkinParameters& skin, const CameraSettings& camera, const Timeline& timeline,
                  const CaptureSummary& captures, VideoFormat format, cv::Size image_size, std::uint64_t seed,
                  const std::vector<std::pair<std::string, std::string>>& inputs);
+/// Pearson correlation of an assessment's per-vertex pressure (vertices.csv, pressure_kpa) with the
+/// simulation's truth (truth_vertex_pressure.npy), over the contact vertices seen whose truth is finite; NaN
+/// with fewer than 3 or no spread. `count` (optional) receives how many vertices were compared.
+double vertex_pressure_pearson(const std::filesystem::path& vertices_csv, const std::filesystem::path& truth_vertex_npy,
+                               int* count = nullptr);
 /// presses-truth.json (schema clearfit.presses-truth/1): the skin's parameters,
 /// the equivalent calibration, the options and the signal noise.
 void write_presses_truth(const std::filesystem::path& path, const SkinParameters& skin, const CameraSettings& camera,
