@@ -489,11 +489,16 @@ void pressure_and_hotspots(const AssessmentScene& scene, const std::optional<Pre
     a.thresholds = o.thresholds_kpa;
     warn_thresholds_below_detection(a.thresholds, a.detection_limit, a.warnings);
     ho.thresholds = a.thresholds;
+    ho.shared_sigma = &a.pressure_shared_sigma;
     a.hotspots = find_hotspots(search, &a.pressure_sigma, &saturated, a.raster, ho, &a.hotspot_labels, scene.mesh);
   } else {
     a.thresholds = o.signal_thresholds;
     if (a.thresholds.empty()) a.thresholds = {o.signal_threshold_sigmas * std::max(a.signal.noise_sigma, 1e-6)};
     ho.thresholds = a.thresholds;
+    // The blur's first-order term is the part of the signal's σ shared by a whole place (as with a calibration).
+    ChartField blur_size = a.blur_effect;
+    for (float& b : blur_size.value) b = std::abs(b);
+    if (blur_size.value.size() == g.size()) ho.shared_sigma = &blur_size;
     a.hotspots = find_hotspots(a.signal.y, &a.signal_sigma, nullptr, a.raster, ho, &a.hotspot_labels, scene.mesh);
     a.warnings.push_back("no pressure calibration: the report shows the blanching signal and where it is significant, not kPa");
   }

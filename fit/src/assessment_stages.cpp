@@ -284,6 +284,7 @@ std::vector<std::uint8_t> calibrated_pressure(const PressureCalibration& calibra
         a.pressure_sigma.value[k] = kNaN;  // 0 kPa below detection is a bound, not an estimate
       }
   extend_detection(calibration, sharpened, o.hysteresis_sigmas, o.min_hotspot_area_mm2, a);
+  a.pressure_shared_sigma = shared_pressure_sigma(calibration, a);
   // Below detection is a measurement (less than the detection limit), shown and counted as 0 kPa;
   // pressure_status keeps the flag. Unseen texels stay NaN.
   for (std::size_t k = 0; k < g.size(); ++k)
@@ -310,6 +311,22 @@ std::vector<std::uint8_t> calibrated_pressure(const PressureCalibration& calibra
     a.warnings.push_back(fixed_digits(100 * a.saturated_fraction, 2) + " % of the seen skin is beyond the calibration's range (saturated): "
                          "the pressure there is at least the value shown");
   return saturated;
+}
+
+ChartField shared_pressure_sigma(const PressureCalibration& calibration, const Assessment& a) {
+  const ChartGrid& g = a.signal.y.grid;
+  ChartField out{g, std::vector<float>(g.size(), kNaN)};
+  if (a.pressure_sigma.value.size() != g.size()) return out;
+  const bool blur = a.blur_effect.value.size() == g.size();
+  const ChartField sharpened = blur ? sharpened_signal(a.signal.y, a.blur_effect) : a.signal.y;
+  std::vector<float> blur_size(g.size(), 0.f), p(g.size());
+  if (blur)
+    for (std::size_t k = 0; k < g.size(); ++k) blur_size[k] = std::abs(a.blur_effect.value[k]);
+  std::vector<std::uint8_t> status(g.size());
+  calibration.invert(sharpened.value, blur_size, p, out.value, status, 0.0);
+  for (std::size_t k = 0; k < g.size(); ++k)
+    if (!std::isfinite(a.pressure_sigma.value[k]) || status[k] != static_cast<std::uint8_t>(PressureStatus::ok)) out.value[k] = kNaN;
+  return out;
 }
 
 namespace {

@@ -6,6 +6,7 @@
 #include <opencv2/imgproc.hpp>
 #include <set>
 #include <stdexcept>
+#include <utility>
 
 namespace clearfit {
 
@@ -123,9 +124,36 @@ cv::Mat place_components(const ChartField& field, const ChartField* sigma, const
 }
 
 struct LevelSums {
-  double area = 0, area_lo = 0, area_hi = 0, sum = 0, sigma_sum = 0;
+  // noise_sum, shared_sum: Σ area σ_n and Σ area σ_s over the level; outline_var: Σ over the band |v − t| < σ of
+  // area σ_n² ℓ / (2σ|∇v|) (the outline's noise, in mm⁴); outline_shared: Σ over it of area σ_s / (2σ) (mm²).
+  double area = 0, sum = 0, noise_sum = 0, shared_sum = 0, outline_var = 0, outline_shared = 0;
   long long texels = 0;
 };
+
+/// A texel's σ split into its shared part (at most σ) and the noise's, σ_n = √(σ² − σ_s²).
+std::pair<double, double> split_sigma(double s, const ChartField* shared, std::size_t k) {
+  const double sh = shared && std::isfinite(shared->value[k]) ? std::min<double>(std::abs(shared->value[k]), s) : 0.0;
+  return {std::sqrt(std::max(0.0, s * s - sh * sh)), sh};
+}
+
+/// A level's area, mean and their σ (HotspotLevel) from its sums.
+HotspotLevel level_figures(const LevelSums& L, double threshold, bool with_sigma, double samples_per_mm2) {
+  HotspotLevel lv;
+  lv.threshold = threshold;
+  lv.area_mm2 = L.area;
+  lv.area_sigma_mm2 = with_sigma ? std::sqrt(L.outline_var + L.outline_shared * L.outline_shared) : 0.0;
+  lv.mean = L.area > 0 ? L.sum / L.area : kNaN;
+  lv.mean_sigma = kNaN;
+  if (L.area > 0) {
+    // The noise's mean σ over √(independent samples in the region), the shared σ's mean as it is, and
+    // the outline's motion: texels of value ≈ t join or leave, moving the mean by (t − mean) δA / A.
+    const double noise = (L.noise_sum / L.area) / std::sqrt(std::max(1.0, L.area * samples_per_mm2));
+    const double outline = (lv.mean - threshold) * lv.area_sigma_mm2 / L.area, shared = L.shared_sum / L.area;
+    lv.mean_sigma = std::sqrt(noise * noise + shared * shared + outline * outline);
+  }
+  lv.texels = L.texels;
+  return lv;
+}
 
 struct PlaceSums {
   double area = 0, half_peak_area = 0, unseen = 0, sum_w = 0, sum_vf = 0, peak = -1e300, peak_sigma = 0;
@@ -202,20 +230,30 @@ std::vector<Hotspot> find_hotspots(const ChartField& field, const ChartField* si
         continue;
       }
       const double s = sigma ? sigma->value[k] : kNaN;
+      const auto [s_noise, s_shared] = std::isfinite(s) ? split_sigma(s, options.shared_sigma, k) : std::pair{kNaN, kNaN};
+      const double ell = std::sqrt(std::max(area, 1.0 / options.samples_per_mm2));
+      double gradient = -1;  // computed once, where a level's outline needs it
       for (std::size_t t = 0; t < thresholds.size(); ++t) {
         LevelSums& L = a.levels[t];
-        if (std::isfinite(s)) L.area_lo += area * (v - s >= thresholds[t]), L.area_hi += area * (v + s >= thresholds[t]);
+        if (std::isfinite(s) && s > 0 && std::abs(v - thresholds[t]) < s) {
+          if (gradient < 0) gradient = gradient_norm(field, i, j);
+          // Without a gradient (an isolated texel) the whole band's half counts as shared.
+          if (gradient > 0)
+            L.outline_var += area * s_noise * s_noise * ell / (2 * s * gradient), L.outline_shared += area * s_shared / (2 * s);
+          else
+            L.outline_shared += 0.5 * area;
+        }
         if (v < thresholds[t]) continue;
-        L.area += area, L.sum += v * area, L.sigma_sum += s * area, ++L.texels;
+        L.area += area, L.sum += v * area, L.noise_sum += s_noise * area, L.shared_sum += s_shared * area, ++L.texels;
       }
       if (std::isfinite(s) && s > 0 && std::abs(v - thresholds.front()) < s && raster.face[k] >= 0) {
         // The outline moves with the noise by σ/|∇v| and takes texels of value t with it: over the band
         // |v − t| < σ (a line of density 1/(2σ)) each texel adds w t² σ ℓ / (2|∇v|) times (x − c)²/(Σ w v)², its
         // noise shared along the outline over ℓ = √(correlation area); to the centroid (weights w, not w v)
         // w σ ℓ / (2|∇v|) times (x − c)²/(Σ w)².
-        const double gradient = gradient_norm(field, i, j);
+        if (gradient < 0) gradient = gradient_norm(field, i, j);
         if (gradient > 0) {
-          const double t = thresholds.front(), ell = std::sqrt(std::max(area, 1.0 / options.samples_per_mm2));
+          const double t = thresholds.front();
           const double mm = area * s * ell / (2 * gradient), kk = mm * t * t;
           a.k0 += kk, a.k1 += kk * raster.point[k], a.k2 += kk * raster.point[k].squaredNorm();
           a.m0 += mm, a.m1 += mm * raster.point[k], a.m2 += mm * raster.point[k].squaredNorm();
@@ -258,15 +296,7 @@ std::vector<Hotspot> find_hotspots(const ChartField& field, const ChartField* si
     h.peak = a.peak;
     h.peak_sigma = a.peak_sigma;
     for (std::size_t t = 0; t < thresholds.size(); ++t) {
-      const LevelSums& L = a.levels[t];
-      HotspotLevel lv;
-      lv.threshold = thresholds[t];
-      lv.area_mm2 = L.area;
-      lv.area_sigma_mm2 = sigma ? 0.5 * (L.area_hi - L.area_lo) : 0.0;
-      lv.mean = L.area > 0 ? L.sum / L.area : kNaN;
-      // Mean of correlated texels: σ̄ / sqrt(independent samples in the region).
-      lv.mean_sigma = L.area > 0 ? (L.sigma_sum / L.area) / std::sqrt(std::max(1.0, L.area * options.samples_per_mm2)) : kNaN;
-      lv.texels = L.texels;
+      HotspotLevel lv = level_figures(a.levels[t], thresholds[t], sigma != nullptr, options.samples_per_mm2);
       h.levels.push_back(lv);
     }
     h.area_mm2 = h.levels[0].area_mm2;

@@ -59,9 +59,11 @@ TEST(Hotspots, NestedThresholdsGiveOnePlaceWithItsAreaAtEachLevel) {
     for (int l = 0; l < 2; ++l) {
       const double t = l == 0 ? 4.3 : 5.5;
       EXPECT_EQ(h.levels[l].threshold, t);
-      // Area where top·exp(−r²/2s²) ≥ t: 2πs²·ln(top/t); its σ: the band where |p − t| ≤ 0.2.
+      // Area where top·exp(−r²/2s²) ≥ t: 2πs²·ln(top/t). Its σ: the outline (radius r, |∇p| = t r / s²) moves by
+      // 0.2 / |∇p|, the noise shared along it over ℓ = 1 mm (samples_per_mm2 1): variance 2πr · 0.2² ℓ / |∇p|².
       EXPECT_NEAR(h.levels[l].area_mm2, 2 * kPi * s * s * std::log(top / t), 0.05) << k << " " << l;
-      EXPECT_NEAR(h.levels[l].area_sigma_mm2, 0.5 * 2 * kPi * s * s * std::log((t + 0.2) / (t - 0.2)), 0.03) << k << " " << l;
+      const double r = s * std::sqrt(2 * std::log(top / t)), grad = t * r / (s * s);
+      EXPECT_NEAR(h.levels[l].area_sigma_mm2, std::sqrt(2 * kPi * r * 0.2 * 0.2 / (grad * grad)), 0.02) << k << " " << l;
       EXPECT_NEAR(h.levels[l].mean, (top - t) / std::log(top / t), 0.02);
     }
     EXPECT_EQ(h.area_mm2, h.levels[0].area_mm2);
@@ -144,7 +146,7 @@ TEST(Hotspots, CentreOfPressureAndCentroidSigmasMatchTheScatterOverNoiseRealisat
   const auto truth = find_hotspots(clean, &sigma, nullptr, raster, o, nullptr, &part.mesh);
   ASSERT_EQ(truth.size(), 1u);
   cv::RNG rng(7);
-  double sum_d2 = 0, sum_predicted = 0, sum_c2 = 0, sum_c_predicted = 0;
+  double sum_d2 = 0, sum_predicted = 0, sum_c2 = 0, sum_c_predicted = 0, sum_a2 = 0, sum_a_predicted = 0;
   const int runs = 200;
   for (int r = 0; r < runs; ++r) {
     cv::Mat white(grid.height, grid.width, CV_64F), smoothed;
@@ -159,6 +161,8 @@ TEST(Hotspots, CentreOfPressureAndCentroidSigmasMatchTheScatterOverNoiseRealisat
     sum_predicted += hs[0].centre_of_pressure_sigma_mm;
     sum_c2 += (hs[0].centroid_mm - truth[0].centroid_mm).squaredNorm();
     sum_c_predicted += hs[0].centroid_sigma_mm;
+    sum_a2 += (hs[0].area_mm2 - truth[0].area_mm2) * (hs[0].area_mm2 - truth[0].area_mm2);
+    sum_a_predicted += hs[0].levels[0].area_sigma_mm2;
   }
   const double measured = std::sqrt(sum_d2 / runs), predicted = sum_predicted / runs;
   std::printf("centre of pressure: rms scatter %.4f mm over %d realisations, propagated sigma %.4f mm\n", measured, runs, predicted);
@@ -166,6 +170,11 @@ TEST(Hotspots, CentreOfPressureAndCentroidSigmasMatchTheScatterOverNoiseRealisat
   const double c_measured = std::sqrt(sum_c2 / runs), c_predicted = sum_c_predicted / runs;
   std::printf("centroid: rms scatter %.4f mm, propagated sigma %.4f mm\n", c_measured, c_predicted);
   EXPECT_NEAR(c_predicted, c_measured, 0.2 * c_measured);
+  // The area moves with the same outline (its noise shared along it over the correlation length); half the band
+  // within ±σ of the threshold, as it was, gave several times the scatter.
+  const double a_measured = std::sqrt(sum_a2 / runs), a_predicted = sum_a_predicted / runs;
+  std::printf("area: rms scatter %.4f mm2, propagated sigma %.4f mm2\n", a_measured, a_predicted);
+  EXPECT_NEAR(a_predicted, a_measured, 0.25 * a_measured);
   // Without a sigma field there is no σ.
   const Hotspot without = find_hotspots(clean, nullptr, nullptr, raster, o, nullptr, &part.mesh)[0];
   EXPECT_TRUE(std::isnan(without.centre_of_pressure_sigma_mm));

@@ -158,6 +158,9 @@ struct Assessment {
   /// 1-σ of `pressure`, kPa, where it is an estimate (PressureStatus::ok); NaN unseen, below detection
   /// (0 kPa there is a bound, not an estimate) and saturated (a lower bound).
   ChartField pressure_sigma;
+  /// The part of pressure_sigma that is one error over a whole place, not noise (shared_pressure_sigma,
+  /// assessment_stages.hpp): the hotspots' means and areas take it undivided. NaN where pressure_sigma is.
+  ChartField pressure_shared_sigma;
   std::vector<std::uint8_t> pressure_status; ///< PressureStatus per texel (invalid where unseen)
   double below_detection_fraction = 0, saturated_fraction = 0;  ///< of seen texels
   double peak_kpa = 0, mean_kpa = 0;         ///< over every seen texel: below detection as 0, saturated at its lower bound

@@ -94,6 +94,12 @@ ChartField signal_sigma(const BlanchingSignal& signal, const ChartField& positio
 std::vector<std::uint8_t> calibrated_pressure(const PressureCalibration& calibration, bool spatial_noise, const AssessmentOptions& o,
                                               Assessment& a);
 
+/// The part of each texel's pressure σ that is the same error over a whole place rather than noise: the
+/// calibration's parameters (one curve for every texel) and the blur's first-order term (|blur_effect|, a
+/// smooth field: what the first order misses is the place's shape, not noise), through the calibration's
+/// inverse at the sharpened signal. NaN where a.pressure_sigma is. Reads a.signal, a.blur_effect (may be empty).
+ChartField shared_pressure_sigma(const PressureCalibration& calibration, const Assessment& a);
+
 /// The detection limit calibrated_pressure applies, for a texel of σ_y = `noise_sigma` (the capture's median): the
 /// gate is the calibration's detection_signal (detection_sigmas of its presses' noise) and, with `spatial_noise`, at
 /// least o.signal_threshold_sigmas · noise_sigma; kpa is the calibration's inverse there (its top when the gate is

@@ -30,10 +30,16 @@ ChartRaster rasterize_chart(const Mesh& mesh, const Chart& chart, const ChartGri
 struct HotspotLevel {
   double threshold = 0;          ///< in the field's unit
   double area_mm2 = 0;           ///< seen skin at or above the threshold
-  /// 1-σ of the area: half the skin area whose value lies within ±σ of the
-  /// threshold (between "value + σ ≥ t" and "value − σ ≥ t"); 0 without a sigma field.
+  /// 1-σ of the area: the outline moves by σ/|∇v| where it crosses the threshold. The noise's share of σ
+  /// (σ² − shared²) is shared along the outline over the correlation length ℓ = 1/√samples_per_mm2, so it adds
+  /// σ_n² ℓ / |∇v|² per mm of outline in variance; the shared share (HotspotOptions::shared_sigma) moves the
+  /// whole outline at once and adds ∫ σ_s / |∇v| along it in σ. Summed over the texels within ±σ of the
+  /// threshold (a band 2σ/|∇v| wide); 0 without a sigma field.
   double area_sigma_mm2 = 0;
-  double mean = 0, mean_sigma = 0;  ///< over that area (NaN σ without a sigma field)
+  /// Over that area (NaN σ without a sigma field). mean_sigma: the noise's share, its mean over the area
+  /// divided by √(independent samples in it); the shared share's mean over the area, undivided; and the
+  /// outline's motion, (mean − threshold) · area_sigma / area; in quadrature.
+  double mean = 0, mean_sigma = 0;
   long long texels = 0;
 };
 
@@ -79,6 +85,11 @@ struct HotspotOptions {
   /// Independent samples per mm² of the field (for the mean's uncertainty):
   /// 1 / (4π σ²) for a field smoothed with a Gaussian of σ mm.
   double samples_per_mm2 = 1.0;
+  /// Optional, on the field's grid: the part of each texel's σ that is the same error over a whole place
+  /// rather than noise (with a calibration: its parameters' covariance and the blur's first-order term,
+  /// assessment_stages.hpp shared_pressure_sigma). It is not averaged down in a place's mean and it moves the
+  /// whole outline at once. Null: all of σ is noise.
+  const ChartField* shared_sigma = nullptr;
   /// Unseen contact texels (NaN in the field) this close to a place (chart mm)
   /// join it as unseen: they connect the seen parts around them (the face and
   /// the plate beside a bump's wall are one place) and count in unseen_area_mm2,
