@@ -276,8 +276,8 @@ void CalibrationSection::bind(SceneFields& f) {
 void GlareSection::bind(SceneFields& f) {
   f.key("enabled", options.enabled, "--no-glare-mask", "Do not mask specular highlights (glare) out of the signal");
   f.key("margin_px", options.margin_px, "--glare-margin-px", "Glare regions grow by this many pixels");
-  f.key("tail_share", options.tail_share, "--glare-tail-share",
-        "... or by this share of a region's radius (its largest inside distance) where that is more (a highlight's faint tail; 0: the margin only)");
+  f.key("tail_light", options.tail_light, "--glare-tail-light",
+        "... or out to where a highlight's light, measured around it, is below this share of the skin's green (0: the margin only)");
   f.key("threshold_sigmas", options.threshold_sigmas);
   f.key("min_change", options.min_change);
   f.key("min_static", options.min_static);

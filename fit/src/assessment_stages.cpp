@@ -21,7 +21,7 @@ constexpr float kNaN = std::numeric_limits<float>::quiet_NaN();
 void check_glare(const GlareMask& g, const PhaseReport& base, const PhaseReport& worn, const GlareOptions& o,
                  std::vector<std::string>& warnings) {
   const bool worn_worse = g.fraction_worn >= g.fraction_baseline;
-  // The highlights with the fixed margin: a large one's tail (GlareOptions::tail_share) is masked, not counted.
+  // The highlights with the fixed margin: a highlight's measured tail (GlareOptions::tail_light) is masked, not counted.
   const double worst = std::max({g.fraction_glare, g.fraction_worn, g.fraction_baseline});
   if (worst > o.max_fraction)
     throw InputError(worn_worse ? worn.source : base.source, worn_worse ? "worn capture" : "baseline capture",

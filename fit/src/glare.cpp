@@ -85,36 +85,29 @@ cv::Mat outline_band(const cv::Mat& valid, double width) {
   return band;
 }
 
-/// The mask grown by the margin: `margin_px`, or `tail_share` of a region's radius (its largest inside
-/// distance: a strip's half width, a disc's radius) where that is more. A highlight fades into the skin over a distance that grows with its size, and the faint light of its
-/// tail, below what the detection sees pixel by pixel, still shows in the signal averaged over many pixels where
-/// the phases see a texel at different pixels (a held baseline). The wristband's realistic preset at half
-/// resolution: a false 0.19 mm² place at the edge of the camera's fixed highlight with 6 px (and with a share of
-/// 0.25); none with 10 px or a share of 0.35, Pearson 0.971 -> 0.985. At 0.5 PhotometricCli's highlight beside a
-/// place hid most of it.
-cv::Mat grow_by_margin(const cv::Mat& mask, const GlareOptions& o) {
+/// The mask grown by `margin_px`, and each region of `labels_half` (the half grid's labels) by its own `tail`
+/// (camera px) where that is more. A highlight fades into the skin, and the faint light of its tail, below what
+/// the detection sees pixel by pixel, still shows in the signal averaged over many pixels where the phases see a
+/// texel at different pixels (a held baseline): the wristband's realistic preset at half resolution had a false
+/// 0.19 mm² place at the edge of the camera's fixed highlight with the 6 px margin alone. How far the light
+/// reaches is measured (measured_tails): a margin proportional to the region's size masked too much of large,
+/// bright highlights, whose light falls off steeply at the detection's edge.
+cv::Mat grow_by_margin(const cv::Mat& mask, int margin_px, const cv::Mat& labels_half = {}, const std::vector<double>& tail = {}) {
   cv::Mat out;
-  const int m = o.margin_px;
+  const int m = margin_px;
   if (m > 0) cv::dilate(mask, out, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * m + 1, 2 * m + 1)));
   else out = mask.clone();
-  cv::Mat labels, inside;
-  const int n = cv::connectedComponents(mask, labels, 8, CV_32S);
-  cv::distanceTransform(mask, inside, cv::DIST_L2, cv::DIST_MASK_PRECISE);
-  std::vector<double> tail(n, 0);  // tail_share of a region's radius (its largest inside distance)
-  for (int y = 0; y < mask.rows; ++y)
-    for (int x = 0; x < mask.cols; ++x)
-      if (const int l = labels.at<int>(y, x); l > 0) tail[l] = std::max(tail[l], o.tail_share * inside.at<float>(y, x));
-  if (*std::max_element(tail.begin(), tail.end()) <= m) return out;
-  // Regions whose tail reaches beyond the fixed margin: each pixel within its tail of its nearest masked pixel.
+  if (tail.empty() || *std::max_element(tail.begin(), tail.end()) <= m) return out;
+  // Regions whose light reaches beyond the fixed margin: each pixel within its tail of its nearest masked pixel.
   cv::Mat dist, nearest;
   cv::distanceTransform(~mask, dist, nearest, cv::DIST_L2, cv::DIST_MASK_5, cv::DIST_LABEL_PIXEL);
-  std::vector<int> region_of_label;  // distanceTransform's label of a masked pixel -> its region
+  std::vector<int> region_of_label;  // distanceTransform's label of a masked pixel -> its region (the half grid's label)
   for (int y = 0; y < mask.rows; ++y)
     for (int x = 0; x < mask.cols; ++x)
       if (mask.at<std::uint8_t>(y, x)) {
         const int k = nearest.at<int>(y, x);
         if (k >= static_cast<int>(region_of_label.size())) region_of_label.resize(k + 1, 0);
-        region_of_label[k] = labels.at<int>(y, x);
+        region_of_label[k] = labels_half.at<int>(y / 2, x / 2);
       }
   for (int y = 0; y < mask.rows; ++y)
     for (int x = 0; x < mask.cols; ++x) {
@@ -123,6 +116,76 @@ cv::Mat grow_by_margin(const cv::Mat& mask, const GlareOptions& o) {
       if (region > 0 && tail[region] > m && dist.at<float>(y, x) <= tail[region]) out.at<std::uint8_t>(y, x) = 255;
     }
   return out;
+}
+
+/// The glare's light around each kept region, measured: the region's own measure of light (w/G: the static
+/// score of both phases for a highlight in both, ±γ for one in a single phase) averaged over rings one
+/// half-resolution pixel wide around it (the inner pixels nearest to it), out to the first ring whose mean is
+/// below its level: `tail_light` for a highlight in both phases (it only dims the signal, but where the phases see
+/// a texel at different pixels its gradient reads as a change), half of `min_change` for one that changes between
+/// the phases (that light reads as pressure). The bundled sample at full scale: with 0.01 for both, two false
+/// 0.08 mm² places at the edges of highlights that appear when worn (their light fell from 1 % to 0.1 % over 12-24
+/// rings beyond the detection); with the changing one's level, none for a static level of 0.003-0.01 (Pearson
+/// 0.992, 29-25 % of the seen skin masked), Pearson 0.976 at 0.02. Returns, per label of `labels`, that reach in camera pixels (at most the region's radius,
+/// its largest inside distance, or the fixed margin where that is more); 0 for labels not kept.
+std::vector<double> measured_tails(const cv::Mat& labels, const std::vector<char>& keep, const cv::Mat& mask_half, const cv::Mat& inner,
+                                   const std::array<cv::Mat, 3>& light, const cv::Mat& phase0, const cv::Mat& phase1,
+                                   const GlareOptions& o) {
+  const int n = static_cast<int>(keep.size());
+  std::vector<long> size(n, 0), in0(n, 0), in1(n, 0);
+  std::vector<double> radius(n, 0);  // half-grid pixels
+  cv::Mat inside, dist, nearest;
+  cv::distanceTransform(mask_half, inside, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+  for (int j = 0; j < labels.rows; ++j)
+    for (int i = 0; i < labels.cols; ++i)
+      if (const int l = labels.at<int>(j, i); l > 0 && keep[l]) {
+        ++size[l], in0[l] += phase0.at<std::uint8_t>(j, i) != 0, in1[l] += phase1.at<std::uint8_t>(j, i) != 0;
+        radius[l] = std::max(radius[l], static_cast<double>(inside.at<float>(j, i)));
+      }
+  // Which measure: 0 both phases (mean static), 1 the worn one (γ), 2 the baseline (−γ).
+  std::vector<int> kind(n, 0);
+  for (int l = 1; l < n; ++l)
+    if (keep[l] && !(in0[l] >= 0.3 * size[l] && in1[l] >= 0.3 * size[l])) kind[l] = in1[l] >= in0[l] ? 1 : 2;
+  const double fixed_half = 0.5 * o.margin_px;
+  int rings = 1;
+  for (int l = 1; l < n; ++l)
+    if (keep[l]) rings = std::max(rings, static_cast<int>(std::ceil(std::max(radius[l], fixed_half))));
+  cv::distanceTransform(~mask_half, dist, nearest, cv::DIST_L2, cv::DIST_MASK_5, cv::DIST_LABEL_PIXEL);
+  std::vector<int> region_of_label;
+  for (int j = 0; j < labels.rows; ++j)
+    for (int i = 0; i < labels.cols; ++i)
+      if (mask_half.at<std::uint8_t>(j, i)) {
+        const int k = nearest.at<int>(j, i);
+        if (k >= static_cast<int>(region_of_label.size())) region_of_label.resize(k + 1, 0);
+        region_of_label[k] = labels.at<int>(j, i);
+      }
+  std::vector<double> sum(static_cast<std::size_t>(n) * (rings + 1), 0), count(sum.size(), 0);
+  for (int j = 0; j < labels.rows; ++j)
+    for (int i = 0; i < labels.cols; ++i) {
+      if (mask_half.at<std::uint8_t>(j, i) || !inner.at<std::uint8_t>(j, i)) continue;
+      const int ring = static_cast<int>(std::ceil(dist.at<float>(j, i))), k = nearest.at<int>(j, i);
+      const int l = k < static_cast<int>(region_of_label.size()) ? region_of_label[k] : 0;
+      if (l <= 0 || ring < 1 || ring > rings) continue;
+      const double e = kind[l] == 0 ? 0.5 * (light[0].at<float>(j, i) + light[1].at<float>(j, i))
+                                    : (kind[l] == 1 ? 1.0 : -1.0) * light[2].at<float>(j, i);
+      sum[l * (rings + 1) + ring] += e, count[l * (rings + 1) + ring] += 1;
+    }
+  std::vector<double> tail(n, 0);
+  for (int l = 1; l < n; ++l) {
+    if (!keep[l]) continue;
+    const int cap = static_cast<int>(std::ceil(std::max(radius[l], fixed_half)));
+    const double level = kind[l] == 0 ? o.tail_light : 0.5 * o.min_change;
+    int reach = cap;
+    for (int ring = 1; ring <= cap; ++ring) {
+      const double c = count[l * (rings + 1) + ring];
+      if (c >= 8 && sum[l * (rings + 1) + ring] / c < level) {
+        reach = ring;
+        break;
+      }
+    }
+    tail[l] = 2.0 * reach;
+  }
+  return tail;
 }
 
 }  // namespace
@@ -137,7 +200,7 @@ void GlareOptions::validate() const {
   check(saturation > 0.5 && saturation <= 1, "saturation", saturation, "must be in (0.5, 1]");
   check(smooth_px >= 0 && smooth_px <= 20, "smooth_px", smooth_px, "must be in [0, 20]");
   check(margin_px >= 0 && margin_px <= 200, "margin_px", margin_px, "must be in [0, 200]");
-  check(tail_share >= 0 && tail_share <= 5, "tail_share", tail_share, "must be in [0, 5]");
+  check(tail_light >= 0 && tail_light <= 0.5, "tail_light", tail_light, "must be in [0, 0.5] (0: the fixed margin only)");
   check(outline_band_px >= 0 && outline_band_px <= 50, "outline_band_px", outline_band_px, "must be in [0, 50]");
   check(max_fraction > 0 && max_fraction <= 1, "max_fraction", max_fraction, "must be in (0, 1]");
   check(blanching_ratio > -0.5 && blanching_ratio < 0.9, "blanching_ratio", blanching_ratio, "must be in (-0.5, 0.9)");
@@ -239,10 +302,14 @@ GlareMask detect_glare(const PhaseAverage& base, const PhaseAverage& worn, const
     return cv::countNonZero(seen_masked) / std::max(1.0, static_cast<double>(cv::countNonZero(seen)));
   };
   if (out.regions > 0) {
-    GlareOptions fixed = o;
-    fixed.tail_share = 0;
-    out.fraction_glare = seen_share(grow_by_margin(out.mask, fixed));
-    out.mask = grow_by_margin(out.mask, o);
+    const cv::Mat fixed = grow_by_margin(out.mask, o.margin_px);
+    out.fraction_glare = seen_share(fixed);
+    if (o.tail_light > 0) {
+      const std::vector<double> tail = measured_tails(labels, keep, mask_half, inner, {static0, static1, gamma}, phase0, phase1, o);
+      out.mask = grow_by_margin(out.mask, o.margin_px, labels, tail);
+    } else {
+      out.mask = fixed;
+    }
   }
   out.fraction = seen_share(out.mask);
   if (!out.ratio_measured && out.regions > 0)

@@ -16,8 +16,8 @@
 // ρ is measured on the data (the median ratio ΔlnB/ΔlnG over clearly
 // blanched pixels below the glare's ratio), else 0.3. A pixel is glare when
 // |γ| or s passes max(k·robust σ, a floor), or when green or blue is near
-// saturation; the region grows to half those thresholds (hysteresis) and by
-// `margin_px`. The seen skin's outline (`outline_band_px`, off by default) can
+// saturation; the region grows to half those thresholds (hysteresis), by
+// `margin_px`, and out to where its light measured around it is below `tail_light`. The seen skin's outline (`outline_band_px`, off by default) can
 // be judged by saturation only: its pixels mix skin with what lies beside the part.
 #include <clearfit/fit/capture.hpp>
 #include <clearfit/fit/hotspots.hpp>
@@ -36,9 +36,10 @@ struct GlareOptions {
   double saturation = 0.95;      ///< linear green or blue mean at or above this is glare
   double smooth_px = 1.5;        ///< Gaussian σ on the half-resolution grid
   int margin_px = 6;             ///< grown by this many camera pixels
-  /// ... or by this share of a region's radius (largest inside distance) where that is more (a highlight's faint tail reaches
-  /// farther the larger it is; glare.cpp grow_by_margin)
-  double tail_share = 0.35;
+  /// ... or out to where a highlight's light, measured as means over rings around it, falls below this share of the
+  /// skin's green (one in both phases; one that changes between them: half of min_change, what would read as
+  /// pressure), where that is farther (at most the region's radius; glare.cpp measured_tails). 0: the margin only.
+  double tail_light = 0.005;
   /// The seen skin's outline: pixels this near an unseen one (camera px) hold skin and what lies beside the part
   /// in shares that change between the phases, as glare's colour does; they are left out of the smoothing and
   /// the noise and masked only when saturated (the margin covers them beside glare found farther in). Off (0) by
