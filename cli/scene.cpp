@@ -248,11 +248,7 @@ std::optional<double> BaselineSection::gap() const {
 }
 
 void BaselineSection::validate() const {
-  try {
-    search.validate();
-  } catch (const std::invalid_argument& e) {
-    throw SceneRuleError("", e.what());
-  }
+  validate_options(search);
   if (gap_mm == "auto") return;
   std::size_t used = 0;
   double g = NAN;
@@ -286,11 +282,7 @@ void GlareSection::bind(SceneFields& f) {
 }
 
 void GlareSection::validate() const {
-  try {
-    options.validate();
-  } catch (const std::invalid_argument& e) {
-    throw SceneRuleError("", e.what());
-  }
+  validate_options(options);
 }
 
 void PhaseRegistrationSection::bind(SceneFields& f) {
@@ -305,11 +297,7 @@ void PhaseRegistrationSection::bind(SceneFields& f) {
 }
 
 void PhaseRegistrationSection::validate() const {
-  try {
-    options.validate();
-  } catch (const std::invalid_argument& e) {
-    throw SceneRuleError("", e.what());
-  }
+  validate_options(options);
 }
 
 void OutlineSection::bind(SceneFields& f) {
@@ -324,11 +312,7 @@ void OutlineSection::bind(SceneFields& f) {
 }
 
 void OutlineSection::validate() const {
-  try {
-    options.validate();
-  } catch (const std::invalid_argument& e) {
-    throw SceneRuleError("", e.what());
-  }
+  validate_options(options);
 }
 
 void VignettingSection::bind(SceneFields& f) {
@@ -341,11 +325,7 @@ void VignettingSection::bind(SceneFields& f) {
 }
 
 void VignettingSection::validate() const {
-  try {
-    options.validate();
-  } catch (const std::invalid_argument& e) {
-    throw SceneRuleError("", e.what());
-  }
+  validate_options(options);
 }
 
 void TimeSeriesSection::bind(SceneFields& f) {
@@ -358,11 +338,7 @@ void TimeSeriesSection::bind(SceneFields& f) {
 }
 
 void TimeSeriesSection::validate() const {
-  try {
-    options.validate();
-  } catch (const InputError& e) {
-    throw SceneRuleError("", e.what());
-  }
+  validate_options(options);
 }
 
 void AssessSection::bind(SceneFields& f) {

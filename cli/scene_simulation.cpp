@@ -268,17 +268,8 @@ class SimulationParser {
 void SimulationSection::read(const YAML::Node& node, const SceneReader& reader) { SimulationParser(reader).parse(node, *this); }
 
 void SimulationSection::validate() const {
-  try {
-    skin.validate();
-    camera.validate();
-    timeline.validate();
-    if (presses) presses->validate();
-    photometric.validate();
-    baseline.validate();
-    skin_motion.validate();
-  } catch (const std::invalid_argument& e) {
-    throw SceneRuleError("", e.what());
-  }
+  validate_options(skin, camera, timeline, photometric, baseline, skin_motion);
+  if (presses) validate_options(*presses);
   if (!(scale >= 0.05 && scale <= 4)) rule_broken("scale", scale, "from 0.05 to 4");
 }
 

@@ -61,6 +61,7 @@
 #include <optional>
 #include <set>
 #include <sstream>
+#include <stdexcept>
 #include <string>
 #include <utility>
 #include <vector>
@@ -79,6 +80,19 @@ template <class T>
   std::ostringstream s;
   s << "must be " << rule << ", got " << value;
   throw SceneRuleError(key, s.str());
+}
+
+/// Runs each module options' own `validate()`; its error (std::invalid_argument or InputError, naming the
+/// field) becomes a SceneRuleError of the section that holds them, so the scene's message names the file and line.
+template <class... Options>
+void validate_options(const Options&... options) {
+  try {
+    (options.validate(), ...);
+  } catch (const std::invalid_argument& e) {
+    throw SceneRuleError("", e.what());
+  } catch (const InputError& e) {
+    throw SceneRuleError("", e.what());
+  }
 }
 
 /// Reads keys of one scene file with errors that name the file, line and key.
