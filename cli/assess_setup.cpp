@@ -110,6 +110,7 @@ std::unique_ptr<Prepared> prepare(AssessOpts& o) {
   ao.signal_thresholds = as.signal_thresholds;
   ao.signal_threshold_sigmas = as.significance_sigmas;
   ao.hysteresis_sigmas = as.hysteresis_sigmas;
+  ao.lossy_outline_px = as.lossy_outline_px;
   ao.min_hotspot_area_mm2 = as.min_hotspot_area_mm2;
   ao.glare = as.glare.options;
   ao.phase_registration = as.phase_registration.options;

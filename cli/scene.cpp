@@ -360,6 +360,8 @@ void AssessSection::bind(SceneFields& f) {
             "Without a calibration: hotspot thresholds on the blanching signal y = ln(G/G0) (default: --significance-sigmas times the noise)");
   f.key("significance_sigmas", significance_sigmas, "--significance-sigmas",
         "Without a calibration and --signal-threshold: significant blanching is this many noise sigmas above the reference");
+  f.key("lossy_outline_px", lossy_outline_px, "--lossy-outline-px",
+        "Lossy (H.264) captures: the seen skin within this many camera pixels of its outline is left unseen (0: off)");
   f.key("hysteresis_sigmas", hysteresis_sigmas, "--hysteresis-sigmas",
         "With a calibration: a texel below detection but connected to a detected one keeps its pressure where its signal "
         "is at least this many of its sigmas (the places' tails; at the detection gate or above: off)");
@@ -415,6 +417,8 @@ void AssessSection::validate() const {
     rule_broken("significance_sigmas", significance_sigmas, "a number of noise sigmas in [1, 100]");
   if (!(std::isfinite(hysteresis_sigmas) && hysteresis_sigmas >= 1 && hysteresis_sigmas <= 100))
     rule_broken("hysteresis_sigmas", hysteresis_sigmas, "a number of noise sigmas in [1, 100]");
+  if (!(std::isfinite(lossy_outline_px) && lossy_outline_px >= 0 && lossy_outline_px <= 100))
+    rule_broken("lossy_outline_px", lossy_outline_px, "camera pixels in [0, 100] (0: off)");
   if (!(std::isfinite(min_hotspot_area_mm2) && min_hotspot_area_mm2 > 0))
     rule_broken("min_hotspot_area_mm2", min_hotspot_area_mm2, "a positive area in mm²");
 }

@@ -435,6 +435,31 @@ void check_captures(const AssessmentScene& scene, const Phases& p, const Baselin
   }
 }
 
+/// Lossy captures (AssessmentOptions::lossy_outline_px): sets `out[k]` for the texels that `inv` reads (moved by
+/// `shift`) within `px` camera pixels of a pixel `map` does not see or, with `glare` (in the same pixels), within
+/// `px` / 2 of a masked one (a highlight's edge is an edge in the image too, but a softer one).
+void mark_near_outline(const RefractionMap& map, const InverseMap& inv, const Vec2& shift, double px, const GlareMask* glare,
+                       std::vector<std::uint8_t>& out) {
+  cv::Mat seen = seen_pixels(map, cv::Rect(0, 0, map.width, map.height)), dist;
+  cv::Mat glare_dist;
+  if (glare && !glare->empty()) {
+    cv::Mat clear(seen.size(), CV_8U, cv::Scalar(255));
+    const cv::Rect r = glare->roi & cv::Rect(0, 0, seen.cols, seen.rows);
+    clear(r).setTo(0, glare->mask(r - glare->roi.tl()));
+    cv::distanceTransform(clear, glare_dist, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+  }
+  cv::copyMakeBorder(seen, seen, 1, 1, 1, 1, cv::BORDER_CONSTANT, cv::Scalar(0));  // the image's edge is an outline too
+  cv::distanceTransform(seen, dist, cv::DIST_L2, cv::DIST_MASK_PRECISE);
+  for (int j = 0; j < inv.height; ++j)
+    for (int i = 0; i < inv.width; ++i) {
+      const auto k = inv.index(i, j);
+      if (!inv.valid[k]) continue;
+      const int x = static_cast<int>(std::lround(inv.map_x[k] + shift.x())) + 1, y = static_cast<int>(std::lround(inv.map_y[k] + shift.y())) + 1;
+      if (x < 0 || y < 0 || x >= dist.cols || y >= dist.rows || dist.at<float>(y, x) <= px) out[k] = 1;
+      else if (!glare_dist.empty() && glare_dist.at<float>(y - 1, x - 1) <= 0.5 * px) out[k] = 1;
+    }
+}
+
 /// Stage 4: the blanching signal on the chart (glare texels excluded), the chart's raster and the
 /// signal's σ with the pose's; returns the options the signal was computed with (the later stages
 /// read its spatial noise and transmittance ratio).
@@ -445,6 +470,11 @@ BlanchingOptions chart_signal(const AssessmentScene& scene, bool own_geometry, c
   BlanchingOptions bo = o.blanching;
   if (!a.glare.empty()) bo.excluded = a.glare_texels;
   bo.spatial_noise = a.baseline.lossy || a.worn.lossy;
+  if (bo.spatial_noise && o.lossy_outline_px > 0) {
+    if (bo.excluded.empty()) bo.excluded.assign(static_cast<std::size_t>(inv.width) * inv.height, 0);
+    mark_near_outline(*scene.forward, inv, p.worn_avg.residual_shift_px, o.lossy_outline_px, &a.glare, bo.excluded);
+    if (b.view()) mark_near_outline(b.map ? *b.map : *scene.forward, *b.view(), p.base_avg.residual_shift_px, o.lossy_outline_px, nullptr, bo.excluded);
+  }
   if (own_geometry) {
     // The phases see a texel at different pixels: their transmittances and fall-off differ, and a
     // texel whose taps reach past either phase's skin is unseen rather than a mixture.

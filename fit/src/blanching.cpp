@@ -92,8 +92,12 @@ ChartField smoothed_sigma(const ChartField& var, const ChartField& var_n, double
 
 /// Robust spread of the smoothed feature over the seen texels (the unpressed majority: 3-MAD
 /// clipping around the median, the clipped Gaussian's SD corrected); what the frames' spread
-/// does not explain is added to every texel's sigma in quadrature.
-void add_spatial_noise(BlanchingSignal& s) {
+/// does not explain is added to each texel's sigma in quadrature, scaled by `kernel`: the sigma a
+/// unit noise per camera pixel keeps after the texel's smoothing (smoothed_sigma), over its median.
+/// The compression's error is the camera pixels' as the frames' noise is, so it grows as theirs does
+/// where the kernel holds fewer pixels: at the seen skin's edge, beside a glare mask, where the part
+/// is seen obliquely (one pixel over several texels).
+void add_spatial_noise(BlanchingSignal& s, const ChartField& kernel) {
   std::vector<double> y;
   for (float v : s.y.value)
     if (std::isfinite(v)) y.push_back(v);
@@ -116,10 +120,15 @@ void add_spatial_noise(BlanchingSignal& s) {
   const double extra2 = sd * sd - s.temporal_noise_sigma * s.temporal_noise_sigma;
   if (!(extra2 > 0)) return;
   s.spatial_noise_sigma = std::sqrt(extra2);
+  std::vector<double> k_seen;
+  for (std::size_t k = 0; k < s.sigma_y.value.size(); ++k)
+    if (std::isfinite(s.sigma_y.value[k]) && std::isfinite(kernel.value[k]) && kernel.value[k] > 0) k_seen.push_back(kernel.value[k]);
+  const double k_median = k_seen.empty() ? 0.0 : median(std::move(k_seen));
   std::vector<double> sig;
-  for (auto& v : s.sigma_y.value)
-    if (std::isfinite(v)) {
-      v = static_cast<float>(std::sqrt(v * v + extra2));
+  for (std::size_t k = 0; k < s.sigma_y.value.size(); ++k)
+    if (float& v = s.sigma_y.value[k]; std::isfinite(v)) {
+      const double share = k_median > 0 && std::isfinite(kernel.value[k]) ? std::max(1.0, kernel.value[k] / k_median) : 1.0;
+      v = static_cast<float>(std::sqrt(v * v + extra2 * share * share));
       sig.push_back(v);
     }
   s.noise_sigma = median(std::move(sig));
@@ -350,7 +359,12 @@ BlanchingSignal compute_blanching(const PhaseAverage& baseline, const PhaseAvera
   for (float v : s.sigma_y.value)
     if (std::isfinite(v)) sig.push_back(v);
   s.noise_sigma = s.temporal_noise_sigma = median(std::move(sig));
-  if (options.spatial_noise) add_spatial_noise(s);
+  if (options.spatial_noise) {
+    ChartField unit = empty_field(g), unit_n = empty_field(g);
+    for (std::size_t k = 0; k < g.size(); ++k)
+      if (std::isfinite(var.value[k])) unit.value[k] = 1.f, unit_n.value[k] = 0.5f * (n_worn[k] + n_base[k]);
+    add_spatial_noise(s, smoothed_sigma(unit, unit_n, options.smoothing_mm));
+  }
   if (options.local_spatial_noise) add_local_spatial_noise(s, options.local_noise_window_mm);
   long long above = 0;
   for (std::size_t k = 0; k < g.size(); ++k)

@@ -376,6 +376,7 @@ struct AssessSection {
   std::vector<double> signal_thresholds;  ///< without a calibration: thresholds on the signal y; empty: significance_sigmas
   double significance_sigmas = AssessmentOptions{}.signal_threshold_sigmas;
   double hysteresis_sigmas = AssessmentOptions{}.hysteresis_sigmas;  ///< a detected place's tail, in its texels' σ
+  double lossy_outline_px = AssessmentOptions{}.lossy_outline_px;    ///< lossy captures: the seen skin's outline left out, camera px
   std::vector<double> reference_uv_mm;  ///< empty: automatic
   double reference_radius_mm = BlanchingOptions{}.reference_radius_mm;
   double min_hotspot_area_mm2 = AssessmentOptions{}.min_hotspot_area_mm2;

@@ -56,6 +56,14 @@ struct AssessmentOptions {
   /// or above: off.
   double hysteresis_sigmas = 2.0;
   double min_hotspot_area_mm2 = 0.05;
+  /// Lossy captures: a texel whose camera pixel lies within this many pixels of the seen skin's outline
+  /// (in the worn capture or, through its own map, the baseline), or within half as many of the glare mask
+  /// (in the worn capture), is unseen. The codec's blocks straddle the edge between the skin and what lies
+  /// beside the part (or a highlight), and the error they leave there does not cancel between the phases (a
+  /// held baseline reads the texel at another pixel). 16: one H.264 macroblock. On scripts/bench-lossy.sh
+  /// (seeds 31 and 32, 640x360 and 960x540, CRF 18-28): 8 left a false place at the band's oblique end
+  /// (CRF 18); the glare's edge at 16 too cost 24-39 % of the seen skin, at 8 15-24 %, both without a false place.
+  double lossy_outline_px = 16;
   TimeSeriesOptions timeseries;          ///< the worn phase over time (timeseries.hpp)
   double max_saturated_fraction = 0.02;  ///< more saturated pixels than this in a window is an error
   double min_mean_code = 10.0;           ///< a darker window (mean 8-bit green) is an error

@@ -79,7 +79,7 @@ struct BlanchingSignal {
   std::string reference;           ///< how the reference was chosen, in words
   double noise_sigma = 0;          ///< median of sigma_y over the seen texels
   double temporal_noise_sigma = 0; ///< noise_sigma from the frames' spread alone
-  double spatial_noise_sigma = 0;  ///< the spatial term added to every texel's sigma_y in quadrature (spatial_noise; else 0)
+  double spatial_noise_sigma = 0;  ///< the spatial term added to sigma_y in quadrature at the median texel, more where its kernel holds fewer camera pixels (spatial_noise; else 0)
   double local_noise_sigma_p95 = 0; ///< local_spatial_noise: the 95th percentile of the local term over the seen texels
   long long texels_seen = 0;
   std::vector<std::string> warnings;
