@@ -104,11 +104,14 @@
     }
     return s + 'signal ' + fmt(v.signal, 4);
   }
-  let frame = 0;
-  viewer.addEventListener('pointermove', (event) => {
+  // One lookup a frame, at the pointer's latest position (a move while a lookup waits replaces its point).
+  let frame = 0, latest = null;
+  viewer.addEventListener('pointermove', (moved) => {
+    latest = moved;
     if (frame) return;
     frame = requestAnimationFrame(() => {
       frame = 0;
+      const event = latest;
       const v = vertexAt(event.clientX, event.clientY);
       status.hovered = v;
       tip.hidden = !v;

@@ -89,8 +89,9 @@ TEST_F(LongCaptureCli, PeakMemoryDoesNotGrowWithTheLength) {
   const double growth_mb = b.max_rss_mb - a.max_rss_mb, kept_mb = all.max_rss_mb - b.max_rss_mb;
   std::cerr << "peak RSS with the sums capped: " << a.max_rss_mb << " MB (" << frames_a << " frames), " << b.max_rss_mb << " MB ("
             << frames_b << " frames): growth " << growth_mb << " MB; keeping every sum of the longer: " << all.max_rss_mb << " MB\n";
-  // Allowed: 1 MB and the per-frame statistics (~0.4 kB a frame, vectors up to twice that).
-  const double allowed_mb = 1 + 1e-3 * (frames_b - frames_a);
+  // Allowed: 3 MB and the per-frame statistics (~0.4 kB a frame, vectors up to twice that). The peak of two
+  // runs of one length differs by up to ~1 MB (the threads' allocator arenas), more on a loaded machine.
+  const double allowed_mb = 3 + 1e-3 * (frames_b - frames_a);
   EXPECT_LT(growth_mb, allowed_mb) << "peak memory grew with the capture's length";
   // The cap is what bounds it: keeping every sum costs clearly more.
   EXPECT_GT(kept_mb, 5 * allowed_mb) << "the capture is too small to tell a bound from growth";

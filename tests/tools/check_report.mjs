@@ -311,7 +311,11 @@ try {
     if (!target) fail('no point of the 3D view lies on the seen surface');
     else {
       await page.mouse.move(target.x, target.y);
-      await page.waitForFunction(() => window.clearfitReport.hovered !== undefined, null, { timeout }).catch(() => {});
+      // Wait for the lookup at this point (an earlier pointer move may have left one at another).
+      await page.waitForFunction((q) => {
+        const point = window.clearfitReport.hovered?.point_mm;
+        return Boolean(point) && Math.hypot(point[0] - q[0], point[1] - q[1], point[2] - q[2]) < 0.5;
+      }, target.p, { timeout }).catch(() => {});
       await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
       const tip = page.locator('.vertex-tip');
       const text = (await tip.isVisible()) ? await tip.textContent() : '';
