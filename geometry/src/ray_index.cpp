@@ -21,6 +21,11 @@ std::string_view to_string(RayBackend backend) {
   return "unknown";
 }
 
+RayIndex::RayIndex(const Mesh& mesh, CornerNormals normals)
+    : mesh_(&mesh), normals_(std::move(normals)), face_normals_(mesh.faces.size()) {
+  for (int f = 0; f < mesh.num_faces(); ++f) face_normals_[static_cast<std::size_t>(f)] = detail::reliable_normal(mesh, f);
+}
+
 RayHit RayIndex::intersect(const Ray& ray) const {
   RayHit hit;
   intersect(std::span<const Ray>(&ray, 1), std::span<RayHit>(&hit, 1));
@@ -84,9 +89,16 @@ TriangleTest test_triangle(const Vec3& o, const Vec3& d, const Vec3& a, const Ve
 RayHit refine(const RayIndex& index, const Ray& ray, int face,
               const std::optional<std::array<double, 3>>& hint) {
   const Mesh& mesh = index.mesh();
+  return refine_tested(index, ray, face,
+                       test_triangle(ray.origin, ray.direction, mesh.corner(face, 0), mesh.corner(face, 1), mesh.corner(face, 2)),
+                       hint);
+}
+
+RayHit refine_tested(const RayIndex& index, const Ray& ray, int face, const TriangleTest& tt,
+                     const std::optional<std::array<double, 3>>& hint) {
+  const Mesh& mesh = index.mesh();
   const Vec3 &a = mesh.corner(face, 0), &b = mesh.corner(face, 1), &c = mesh.corner(face, 2);
   const Vec3 &o = ray.origin, &d = ray.direction;
-  const TriangleTest tt = test_triangle(o, d, a, b, c);
   RayHit hit;
   hit.face = face;
   if (tt.inside()) {
@@ -113,7 +125,7 @@ RayHit refine(const RayIndex& index, const Ray& ray, int face,
   // there when its index is the lowest, so it takes its corner normals (a neighbour's, compute_corner_normals)
   // for its orientation. Found by scripts/numerical-sweep.sh: a slab split at points on its edges gave
   // back_face for a ray aimed exactly at such a point (ray 20871 of the sixth 40000-ray run).
-  hit.geometric_normal = detail::reliable_normal(mesh, face);
+  hit.geometric_normal = index.face_normal(face);
   if (hit.geometric_normal.isZero(0)) hit.geometric_normal = hit.shading_normal;
   hit.front_facing = d.dot(hit.geometric_normal) < 0;
   return hit;
@@ -135,8 +147,10 @@ RayHit resolve(const RayIndex& index, const VertexFaces& around, const Ray& ray,
   auto test = [&](int f) {
     return test_triangle(ray.origin, ray.direction, mesh.corner(f, 0), mesh.corner(f, 1), mesh.corner(f, 2));
   };
-  if (test(face).inside()) return refine(index, ray, face, std::nullopt);
+  const TriangleTest own = test(face);
+  if (own.inside()) return refine_tested(index, ray, face, own, std::nullopt);
   int after = -1, before = -1;  // first hit at t >= t_min; last hit below t_min
+  TriangleTest tt_after, tt_before;
   double t_after = std::numeric_limits<double>::infinity(), t_before = -t_after;
   for (int v : mesh.faces[face])
     for (int i = around.offset[v]; i < around.offset[v + 1]; ++i) {
@@ -146,13 +160,14 @@ RayHit resolve(const RayIndex& index, const VertexFaces& around, const Ray& ray,
       if (!tt.inside()) continue;
       const double t = tt.t();
       if (t >= ray.t_min && g != ray.skip_face) {  // the skip face only as a hit to reject (re-cast past)
-        if (t < t_after || (t == t_after && g < after)) after = g, t_after = t;
+        if (t < t_after || (t == t_after && g < after)) after = g, t_after = t, tt_after = tt;
       } else if (t > t_before) {
-        before = g, t_before = t;
+        before = g, t_before = t, tt_before = tt;
       }
     }
-  const int g = after >= 0 ? after : before;
-  return g >= 0 ? refine(index, ray, g, std::nullopt) : refine(index, ray, face, hint);
+  if (after >= 0) return refine_tested(index, ray, after, tt_after, std::nullopt);
+  if (before >= 0) return refine_tested(index, ray, before, tt_before, std::nullopt);
+  return refine_tested(index, ray, face, own, hint);
 }
 
 void check_rays(std::span<const Ray> rays, std::span<RayHit> hits) {

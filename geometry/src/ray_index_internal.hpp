@@ -37,6 +37,9 @@ TriangleTest test_triangle(const Vec3& origin, const Vec3& direction, const Vec3
 /// Never NaN for a finite ray; a face of zero area (to rounding) takes its corner normals as its geometric normal.
 RayHit refine(const RayIndex& index, const Ray& ray, int face,
               const std::optional<std::array<double, 3>>& hint);
+/// The same with the face's test_triangle of this ray already computed.
+RayHit refine_tested(const RayIndex& index, const Ray& ray, int face, const TriangleTest& tt,
+                     const std::optional<std::array<double, 3>>& hint);
 
 /// The faces around each vertex (CSR): faces[offset[v] .. offset[v+1]).
 struct VertexFaces {

@@ -48,9 +48,12 @@ class RayIndex {
   virtual RayBackend backend() const = 0;
   const Mesh& mesh() const { return *mesh_; }
   const CornerNormals& normals() const { return normals_; }
+  /// Unit right-hand normal of face f, zero for a face flat to rounding (kept
+  /// from construction: every refined hit needs its face's).
+  const Vec3& face_normal(int f) const { return face_normals_[static_cast<std::size_t>(f)]; }
 
  protected:
-  RayIndex(const Mesh& mesh, CornerNormals normals) : mesh_(&mesh), normals_(std::move(normals)) {}
+  RayIndex(const Mesh& mesh, CornerNormals normals);
   /// Double-precision hit of `ray` with `face` (watertight test of Woop et al.
   /// 2013), filling every RayHit field; no t-range check. If the double test
   /// misses the face (the ray passes just outside it, or lies in its plane), the
@@ -62,9 +65,10 @@ class RayIndex {
  private:
   const Mesh* mesh_;
   CornerNormals normals_;
+  std::vector<Vec3> face_normals_;
 };
 
-/// The mesh must outlive the index. `normals` default: compute_corner_normals(mesh);
+/// The mesh must outlive the index and not change. `normals` default: compute_corner_normals(mesh);
 /// if given it must have one entry per face (else std::invalid_argument).
 /// Every backend returns double-precision hits that equal the brute-force loop's
 /// (the same face, the same t) except, for Embree, where two faces sharing no
