@@ -1,7 +1,10 @@
 // Stage 5 of the refraction map: the seen fraction of the pixels on the outline of the seen region.
 #include "map_stages.hpp"
 
+#include <tbb/blocked_range.h>
 #include <tbb/parallel_for.h>
+
+#include <algorithm>
 
 namespace clearfit::refraction_detail {
 
@@ -9,12 +12,18 @@ namespace {
 
 constexpr int kSub = 4;  // rays per side of a pixel's square
 
-/// The pixels whose 8 neighbours (inside the image) do not all share their seen-or-not.
-std::vector<std::uint32_t> outline_pixels(const RefractionMap& map) {
-  std::vector<std::uint32_t> out;
+/// The pixels whose 8 neighbours (inside the image) do not all share their
+/// seen-or-not, in row-major order. Only pixels of `box` can be seen (the
+/// rest are `outside`), so only the box widened by one pixel is scanned, its
+/// rows in parallel.
+std::vector<std::uint32_t> outline_pixels(const RefractionMap& map, const PixelBox& box) {
+  if (box.empty()) return {};
   auto seen = [&](int x, int y) { return map.status[map.index(x, y)] == PixelStatus::valid; };
-  for (int y = 0; y < map.height; ++y)
-    for (int x = 0; x < map.width; ++x) {
+  const int x0 = std::max(0, box.x0 - 1), x1 = std::min(map.width - 1, box.x1 + 1);
+  const int y0 = std::max(0, box.y0 - 1), y1 = std::min(map.height - 1, box.y1 + 1);
+  std::vector<std::vector<std::uint32_t>> rows(static_cast<std::size_t>(y1 - y0 + 1));
+  tbb::parallel_for(y0, y1 + 1, [&](int y) {
+    for (int x = x0; x <= x1; ++x) {
       const bool s = seen(x, y);
       bool mixed = false;
       for (int dy = -1; dy <= 1 && !mixed; ++dy)
@@ -22,8 +31,11 @@ std::vector<std::uint32_t> outline_pixels(const RefractionMap& map) {
           const int xx = x + dx, yy = y + dy;
           mixed = xx >= 0 && yy >= 0 && xx < map.width && yy < map.height && seen(xx, yy) != s;
         }
-      if (mixed) out.push_back(static_cast<std::uint32_t>(map.index(x, y)));
+      if (mixed) rows[y - y0].push_back(static_cast<std::uint32_t>(map.index(x, y)));
     }
+  });
+  std::vector<std::uint32_t> out;
+  for (const auto& row : rows) out.insert(out.end(), row.begin(), row.end());
   return out;
 }
 
@@ -32,8 +44,10 @@ std::vector<std::uint32_t> outline_pixels(const RefractionMap& map) {
 void measure_seen_fraction(const MapRun& run) {
   RefractionMap& map = run.map;
   map.seen_fraction.resize(map.status.size());
-  for (std::size_t k = 0; k < map.status.size(); ++k) map.seen_fraction[k] = map.status[k] == PixelStatus::valid ? 1.f : 0.f;
-  const std::vector<std::uint32_t> outline = outline_pixels(map);
+  tbb::parallel_for(tbb::blocked_range<std::size_t>(0, map.status.size(), 1 << 16), [&](const auto& r) {
+    for (std::size_t k = r.begin(); k < r.end(); ++k) map.seen_fraction[k] = map.status[k] == PixelStatus::valid ? 1.f : 0.f;
+  });
+  const std::vector<std::uint32_t> outline = outline_pixels(map, run.box);
   constexpr std::size_t kPerPixel = kSub * kSub;
   constexpr std::size_t kBatch = 256;  // outline pixels per task
   tbb::parallel_for(std::size_t{0}, (outline.size() + kBatch - 1) / kBatch, [&](std::size_t b) {

@@ -36,15 +36,22 @@ void reset_span(RefractionMap& map, std::size_t p, std::size_t n, PixelStatus wh
 }
 
 void store(RefractionMap& map, const TraceScene& scene, std::size_t p, const SkinSample& s) {
-  reset(map, p);
   map.status[p] = s.status;
   map.incidence_deg[p] = static_cast<float>(s.incidence_deg);
-  if (s.status != PixelStatus::valid) return;
+  if (s.status != PixelStatus::valid) {  // every other field as reset_span leaves it
+    constexpr double dnan = std::numeric_limits<double>::quiet_NaN();
+    map.skin_point[p] = Vec3(dnan, dnan, dnan);
+    map.face[p] = -1;
+    map.bary[p] = map.chart_uv[p] = Eigen::Vector2f(fnan, fnan);
+    map.contact_deg[p] = map.transmittance[p] = fnan;
+    return;
+  }
   map.skin_point[p] = s.skin_point;
   map.face[p] = s.face;
   map.bary[p] = Eigen::Vector2f(static_cast<float>(s.bary[1]), static_cast<float>(s.bary[2]));
   map.contact_deg[p] = static_cast<float>(s.contact_deg);
   map.transmittance[p] = static_cast<float>(s.transmittance);
+  map.chart_uv[p] = Eigen::Vector2f(fnan, fnan);
   if (scene.chart && !scene.chart->uv.empty()) {
     const auto& f = scene.mesh->faces[s.face];
     const Vec2 uv = s.bary[0] * scene.chart->uv[f[0]] + s.bary[1] * scene.chart->uv[f[1]] + s.bary[2] * scene.chart->uv[f[2]];
