@@ -520,6 +520,7 @@ void pressure_and_hotspots(const AssessmentScene& scene, const std::optional<Pre
     warn_thresholds_below_detection(a.thresholds, a.detection_limit, a.warnings);
     ho.thresholds = a.thresholds;
     ho.shared_sigma = &a.pressure_shared_sigma;
+    ho.outline_level = a.detection_limit.tail_kpa;  // a detected place is read down to its tail only
     a.hotspots = find_hotspots(search, &a.pressure_sigma, &saturated, a.raster, ho, &a.hotspot_labels, scene.mesh);
   } else {
     a.thresholds = o.signal_thresholds;

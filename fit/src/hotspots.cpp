@@ -123,6 +123,21 @@ cv::Mat place_components(const ChartField& field, const ChartField* sigma, const
   return labels;
 }
 
+/// Per texel, the share of its noise's correlation area (a Gaussian ρ of σ = √(1 / (2π samples_per_mm2)), the
+/// correlation of white noise after the field's smoothing, whose integral is 1 / samples_per_mm2) that lies on
+/// texels weighing in a centre of pressure (in a place, above `outline_at`): the neighbours outside do not move
+/// it, so a texel at the outline shares its noise with about half its correlation area.
+cv::Mat weighing_share(const ChartField& field, const cv::Mat& labels, double outline_at, double samples_per_mm2) {
+  const ChartGrid& g = field.grid;
+  cv::Mat weighing(g.height, g.width, CV_32F, cv::Scalar(0)), share;
+  for (int j = 0; j < g.height; ++j)
+    for (int i = 0; i < g.width; ++i)
+      weighing.at<float>(j, i) = labels.at<int>(j, i) > 0 && field.value[g.index(i, j)] > outline_at ? 1.f : 0.f;
+  const double sigma_px = std::sqrt(1.0 / (2 * M_PI * samples_per_mm2)) / g.texel_mm;
+  cv::GaussianBlur(weighing, share, cv::Size(), sigma_px, sigma_px, cv::BORDER_CONSTANT);
+  return share;
+}
+
 struct LevelSums {
   // noise_sum, shared_sum: Σ area σ_n and Σ area σ_s over the level; outline_var: Σ over the band |v − t| < σ of
   // area σ_n² ℓ / (2σ|∇v|) (the outline's noise, in mm⁴); outline_shared: Σ over it of area σ_s / (2σ) (mm²).
@@ -213,8 +228,11 @@ std::vector<Hotspot> find_hotspots(const ChartField& field, const ChartField* si
   std::vector<double> thresholds = options.thresholds;
   std::sort(thresholds.begin(), thresholds.end());
   if (thresholds.empty()) return {};
+  // The centre of pressure's weights: the field above the places' outline level.
+  const double outline_at = std::isfinite(options.outline_level) ? std::max(thresholds.front(), options.outline_level) : thresholds.front();
   int n = 0;
   const cv::Mat lab = place_components(field, sigma, raster, thresholds.front(), options.unseen_reach_mm / g.texel_mm, &n);
+  const cv::Mat shared = weighing_share(field, lab, outline_at, options.samples_per_mm2);
   std::vector<PlaceSums> acc(n);
   for (auto& a : acc) a.levels.resize(thresholds.size());
   for (int j = 0; j < g.height; ++j)
@@ -248,14 +266,12 @@ std::vector<Hotspot> find_hotspots(const ChartField& field, const ChartField* si
       }
       if (std::isfinite(s) && s > 0 && std::abs(v - thresholds.front()) < s && raster.face[k] >= 0) {
         // The outline moves with the noise by σ/|∇v| and takes texels of value t with it: over the band
-        // |v − t| < σ (a line of density 1/(2σ)) each texel adds w t² σ ℓ / (2|∇v|) times (x − c)²/(Σ w v)², its
-        // noise shared along the outline over ℓ = √(correlation area); to the centroid (weights w, not w v)
-        // w σ ℓ / (2|∇v|) times (x − c)²/(Σ w)².
+        // |v − t| < σ (a line of density 1/(2σ)) each texel adds to the centroid (weights w) w σ ℓ / (2|∇v|) times
+        // (x − c)²/(Σ w)², its noise shared along the outline over ℓ = √(correlation area). Not to the centre of
+        // pressure: its weight v − outline_at is 0 there.
         if (gradient < 0) gradient = gradient_norm(field, i, j);
         if (gradient > 0) {
-          const double t = thresholds.front();
-          const double mm = area * s * ell / (2 * gradient), kk = mm * t * t;
-          a.k0 += kk, a.k1 += kk * raster.point[k], a.k2 += kk * raster.point[k].squaredNorm();
+          const double mm = area * s * ell / (2 * gradient);
           a.m0 += mm, a.m1 += mm * raster.point[k], a.m2 += mm * raster.point[k].squaredNorm();
         }
       }
@@ -264,13 +280,15 @@ std::vector<Hotspot> find_hotspots(const ChartField& field, const ChartField* si
       a.texels += 1;
       if (raster.face[k] >= 0) {
         a.c += area * raster.point[k];
-        a.cp += v * area * raster.point[k];
+        const double lift = std::max(0.0, v - outline_at);
+        a.cp += lift * area * raster.point[k];
         a.sum_w += area;
-        a.sum_vf += v * area;
+        a.sum_vf += lift * area;
         a.faces.insert(raster.face[k]);
-        if (std::isfinite(s)) {
-          // ∂c/∂v_i = w_i (x_i − c) / Σ w v; neighbours within the correlation area 1/samples_per_mm2 move together.
-          const double kk = area * s * s * std::max(area, 1.0 / options.samples_per_mm2);
+        if (std::isfinite(s) && lift > 0) {
+          // ∂c/∂v_i = w_i (x_i − c) / Σ w (v − outline_at); neighbours within the correlation area 1/samples_per_mm2 move
+          // together, those of them that weigh in it (weighing_share).
+          const double kk = area * s * s * std::max<double>(area, shared.at<float>(j, i) / options.samples_per_mm2);
           a.k0 += kk, a.k1 += kk * raster.point[k], a.k2 += kk * raster.point[k].squaredNorm();
         }
       }

@@ -60,8 +60,12 @@ TEST_F(LossyCli, H264CaptureFindsTheHotspotsAndNoFalseOne) {
   // Hotspots at 4.3 kPa against the truth: none farther than 1 mm from a truth hotspot; the truth hotspots
   // of 4 mm or more (equivalent diameter at 4.3 kPa) found within 0.25 mm.
   std::vector<Eigen::Vector3d> found;
+  std::vector<double> found_sigma;  // their reported centre-of-pressure σ (the rms distance to the true centre)
   for (const auto& h : rep["hotspots"])
-    if (h["threshold_kpa"].get<double>() == 4.3) found.push_back(vec3(h["centre_of_pressure_mm"]));
+    if (h["threshold_kpa"].get<double>() == 4.3) {
+      found.push_back(vec3(h["centre_of_pressure_mm"]));
+      found_sigma.push_back(h["centre_of_pressure_sigma_mm"].is_number() ? h["centre_of_pressure_sigma_mm"].get<double>() : NAN);
+    }
   for (const Eigen::Vector3d& m : found) {
     double best = 1e9;
     for (const auto& t : truth["hotspots"]) best = std::min(best, (m - vec3(t["centroid_part_mm"])).norm());
@@ -72,15 +76,21 @@ TEST_F(LossyCli, H264CaptureFindsTheHotspotsAndNoFalseOne) {
     const double diameter = 2 * std::sqrt(t["area_ge_4_3_kpa_mm2"].get<double>() / M_PI);
     if (diameter < 3) continue;
     ++large;
-    double best = 1e9;
-    for (const Eigen::Vector3d& m : found) best = std::min(best, (m - vec3(t["centroid_part_mm"])).norm());
-    std::printf("truth hotspot of %.1f mm: centroid error %.3f mm\n", diameter, best);
+    double best = 1e9, sigma = NAN;
+    for (std::size_t i = 0; i < found.size(); ++i)
+      if (const double d = (found[i] - vec3(t["centroid_part_mm"])).norm(); d < best) best = d, sigma = found_sigma[i];
+    std::printf("truth hotspot of %.1f mm: centroid error %.3f mm, its sigma %.3f mm\n", diameter, best, sigma);
     // At 480x270 the 3.1 mm hotspot (10 kPa) stays under the compression's detection limit (README, bench-lossy).
     // 0.25 mm, not 0.2: the 4.9 mm hotspot's centroid error moved from 0.165 to 0.183, 0.188 and 0.200 mm
     // between refraction maps that differ by less than their 1 um tolerance (the adaptive criterion of
     // fc35ba4 and three draws of its checks after it): the simulated H.264 capture re-encodes differently,
-    // so the bound sat inside the run-to-run spread.
-    if (diameter >= 4) EXPECT_LE(best, 0.25);
+    // so the bound sat inside the run-to-run spread. Weighted by the pressure above the outline (2026-11-29) it is
+    // 0.187 mm (0.207 weighted by the pressure): 0.2 would still sit inside that spread.
+    // The reported σ covers it: within the 95 % disc (radius 1.73 σ, σ the rms distance); 0.259 mm, 0.72 σ.
+    if (diameter >= 4) {
+      EXPECT_LE(best, 0.25);
+      EXPECT_LE(best, 1.73 * sigma);
+    }
   }
   EXPECT_EQ(large, 2);
 }

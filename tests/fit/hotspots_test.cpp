@@ -1,7 +1,8 @@
 // Hotspots against hand-computed cases: nested thresholds give one place with
 // its area at each level (closed forms of a Gaussian), ids and label image
 // agree, unseen texels between two pressed parts join them as unseen (not as
-// 0), and the centroid lies on a curved surface while the 3D mean lies inside.
+// 0), the centroid lies on a curved surface while the 3D mean lies inside, and the centres' σ match their
+// scatter over noise realisations (a gated field's too).
 #include <clearfit/fit/hotspots.hpp>
 #include <clearfit/geometry/chart.hpp>
 #include <clearfit/geometry/shapes.hpp>
@@ -121,41 +122,59 @@ TEST(Hotspots, CentroidLiesOnACurvedSurfaceAndTheMeanInside) {
   EXPECT_NEAR((hs[0].centroid_mm - hs[0].centroid_mean_mm).norm(), r_in - radius(hs[0].centroid_mean_mm), 0.01);
 }
 
-TEST(Hotspots, CentreOfPressureAndCentroidSigmasMatchTheScatterOverNoiseRealisations) {
-  // A Gaussian place plus noise smoothed like the assessment's signal (white per texel, then a Gaussian of
-  // σ_s): the centre of pressure's and the centroid's rms scatter over realisations against their propagated σ.
-  // The centroid moves only with the outline, so it is the check of the outline's term.
-  test::TracePart part(shapes::slab(10, 10, 2, 4));
-  const Chart chart = compute_chart(part.mesh, part.contact);
-  const ChartGrid grid = ChartGrid::covering(chart.uv_min, chart.uv_max, 0.05);
-  const ChartRaster raster = rasterize_chart(part.mesh, chart, grid);
-  const Vec2 centre = 0.5 * (chart.uv_min + chart.uv_max);
-  const double peak = 10, width = 1.2, noise = 0.3, smooth_mm = 0.25;
-  const double smooth_px = smooth_mm / grid.texel_mm;
-  const cv::Mat k1 = cv::getGaussianKernel(2 * static_cast<int>(std::ceil(4 * smooth_px)) + 1, smooth_px, CV_64F);
-  const double gain = k1.dot(k1);  // variance of white unit noise after the 2D (separable) kernel: (Σ k²)²
-  HotspotOptions o;
-  o.thresholds = {3.0};  // 10 σ of the noise: the place's outline hardly moves (the propagation is for a given place)
-  o.samples_per_mm2 = 1.0 / (4 * kPi * smooth_mm * smooth_mm);
+/// A Gaussian place plus noise smoothed like the assessment's signal (white per texel, then a Gaussian of σ_s),
+/// on a slab: realisations of it, optionally gated as a lossy capture's pressure is (values under `gate` read 0).
+struct NoisyPlace {
+  test::TracePart part{shapes::slab(10, 10, 2, 4)};
+  Chart chart = compute_chart(part.mesh, part.contact);
+  ChartGrid grid = ChartGrid::covering(chart.uv_min, chart.uv_max, 0.05);
+  ChartRaster raster = rasterize_chart(part.mesh, chart, grid);
+  double peak = 10, width = 1.2, noise = 0.3, smooth_mm = 0.25;
   ChartField clean{grid, std::vector<float>(grid.size(), NAN)};
-  for (int j = 0; j < grid.height; ++j)
-    for (int i = 0; i < grid.width; ++i)
-      if (raster.face[grid.index(i, j)] >= 0)
-        clean.value[grid.index(i, j)] = static_cast<float>(peak * std::exp(-(grid.uv(i, j) - centre).squaredNorm() / (2 * width * width)));
-  const ChartField sigma{grid, std::vector<float>(grid.size(), static_cast<float>(noise))};
-  const auto truth = find_hotspots(clean, &sigma, nullptr, raster, o, nullptr, &part.mesh);
-  ASSERT_EQ(truth.size(), 1u);
-  cv::RNG rng(7);
-  double sum_d2 = 0, sum_predicted = 0, sum_c2 = 0, sum_c_predicted = 0, sum_a2 = 0, sum_a_predicted = 0;
-  const int runs = 200;
-  for (int r = 0; r < runs; ++r) {
+  ChartField sigma{grid, std::vector<float>(grid.size(), static_cast<float>(noise))};
+  NoisyPlace() {
+    const Vec2 centre = 0.5 * (chart.uv_min + chart.uv_max);
+    for (int j = 0; j < grid.height; ++j)
+      for (int i = 0; i < grid.width; ++i)
+        if (raster.face[grid.index(i, j)] >= 0)
+          clean.value[grid.index(i, j)] = static_cast<float>(peak * std::exp(-(grid.uv(i, j) - centre).squaredNorm() / (2 * width * width)));
+  }
+  HotspotOptions options(double threshold) const {
+    HotspotOptions o;
+    o.thresholds = {threshold};
+    o.samples_per_mm2 = 1.0 / (4 * kPi * smooth_mm * smooth_mm);
+    return o;
+  }
+  ChartField realise(cv::RNG& rng, double gate = -INFINITY) const {
+    const double smooth_px = smooth_mm / grid.texel_mm;
+    const cv::Mat k1 = cv::getGaussianKernel(2 * static_cast<int>(std::ceil(4 * smooth_px)) + 1, smooth_px, CV_64F);
+    const double gain = k1.dot(k1);  // variance of white unit noise after the 2D (separable) kernel: (Σ k²)²
     cv::Mat white(grid.height, grid.width, CV_64F), smoothed;
     rng.fill(white, cv::RNG::NORMAL, 0.0, noise / gain);
     cv::GaussianBlur(white, smoothed, cv::Size(), smooth_px, smooth_px, cv::BORDER_REFLECT);
     ChartField f = clean;
     for (int j = 0; j < grid.height; ++j)
-      for (int i = 0; i < grid.width; ++i) f.value[grid.index(i, j)] += static_cast<float>(smoothed.at<double>(j, i));
-    const auto hs = find_hotspots(f, &sigma, nullptr, raster, o, nullptr, &part.mesh);
+      for (int i = 0; i < grid.width; ++i) {
+        float& v = f.value[grid.index(i, j)];
+        v += static_cast<float>(smoothed.at<double>(j, i));
+        if (v < gate) v = 0.f;
+      }
+    return f;
+  }
+};
+
+TEST(Hotspots, CentreOfPressureAndCentroidSigmasMatchTheScatterOverNoiseRealisations) {
+  // The centre of pressure's and the centroid's rms scatter over realisations against their propagated σ.
+  // The centroid moves only with the outline, so it is the check of the outline's term.
+  const NoisyPlace place;
+  const HotspotOptions o = place.options(3.0);  // 10 σ of the noise: the place's outline hardly moves (the propagation is for a given place)
+  const auto truth = find_hotspots(place.clean, &place.sigma, nullptr, place.raster, o, nullptr, &place.part.mesh);
+  ASSERT_EQ(truth.size(), 1u);
+  cv::RNG rng(7);
+  double sum_d2 = 0, sum_predicted = 0, sum_c2 = 0, sum_c_predicted = 0, sum_a2 = 0, sum_a_predicted = 0;
+  const int runs = 200;
+  for (int r = 0; r < runs; ++r) {
+    const auto hs = find_hotspots(place.realise(rng), &place.sigma, nullptr, place.raster, o, nullptr, &place.part.mesh);
     ASSERT_GE(hs.size(), 1u);
     sum_d2 += (hs[0].centre_of_pressure_mm - truth[0].centre_of_pressure_mm).squaredNorm();
     sum_predicted += hs[0].centre_of_pressure_sigma_mm;
@@ -176,9 +195,41 @@ TEST(Hotspots, CentreOfPressureAndCentroidSigmasMatchTheScatterOverNoiseRealisat
   std::printf("area: rms scatter %.4f mm2, propagated sigma %.4f mm2\n", a_measured, a_predicted);
   EXPECT_NEAR(a_predicted, a_measured, 0.25 * a_measured);
   // Without a sigma field there is no σ.
-  const Hotspot without = find_hotspots(clean, nullptr, nullptr, raster, o, nullptr, &part.mesh)[0];
+  const Hotspot without = find_hotspots(place.clean, nullptr, nullptr, place.raster, o, nullptr, &place.part.mesh)[0];
   EXPECT_TRUE(std::isnan(without.centre_of_pressure_sigma_mm));
   EXPECT_TRUE(std::isnan(without.centroid_sigma_mm));
+}
+
+TEST(Hotspots, CentreOfPressureOfAGatedFieldWeighsItAboveItsOutline) {
+  // A lossy capture's pressure is 0 under its detection gate's tail: a place's outline is a step from 0 to the tail,
+  // above the threshold, where the place's slope is low and the noise moves it most. Weighted by the field above the
+  // outline level (HotspotOptions::outline_level) the texels it moves weigh 0: the scatter against the propagated
+  // σ, and against the scatter weighted above the threshold alone.
+  const NoisyPlace place;
+  const double threshold = 1.0, tail = 2.0;  // the tail at a fifth of the peak: σ/|∇v| 0.1 mm of outline motion
+  HotspotOptions o = place.options(threshold), at_threshold = o;
+  o.outline_level = tail;
+  const auto truth = find_hotspots(place.clean, &place.sigma, nullptr, place.raster, o, nullptr, &place.part.mesh);
+  ASSERT_EQ(truth.size(), 1u);
+  cv::RNG rng(11);
+  double sum_d2 = 0, sum_predicted = 0, sum_t2 = 0;
+  const int runs = 200;
+  for (int r = 0; r < runs; ++r) {
+    const ChartField f = place.realise(rng, tail);
+    const auto hs = find_hotspots(f, &place.sigma, nullptr, place.raster, o, nullptr, &place.part.mesh);
+    const auto ht = find_hotspots(f, &place.sigma, nullptr, place.raster, at_threshold, nullptr, &place.part.mesh);
+    ASSERT_EQ(hs.size(), 1u);
+    ASSERT_EQ(ht.size(), 1u);
+    sum_d2 += (hs[0].centre_of_pressure_mm - truth[0].centre_of_pressure_mm).squaredNorm();
+    sum_predicted += hs[0].centre_of_pressure_sigma_mm;
+    sum_t2 += (ht[0].centre_of_pressure_mm - truth[0].centre_of_pressure_mm).squaredNorm();
+  }
+  const double measured = std::sqrt(sum_d2 / runs), predicted = sum_predicted / runs, at_t = std::sqrt(sum_t2 / runs);
+  std::printf("gated at %.1f: centre of pressure's rms scatter %.4f mm, propagated sigma %.4f mm; weighted above the threshold %.1f "
+              "instead: %.4f mm\n",
+              tail, measured, predicted, threshold, at_t);
+  EXPECT_NEAR(predicted, measured, 0.15 * measured);
+  EXPECT_LT(measured, at_t);
 }
 
 }  // namespace

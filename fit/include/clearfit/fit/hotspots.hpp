@@ -57,11 +57,16 @@ struct Hotspot {
   double half_peak_area_mm2 = 0;
   Vec3 centroid_mm = Vec3::Zero();    ///< on the contact surface: the point of it nearest to centroid_mean_mm
   Vec3 centroid_mean_mm = Vec3::Zero();  ///< area-weighted 3D mean (inside a curved surface)
-  Vec3 centre_of_pressure_mm = Vec3::Zero();  ///< field-weighted 3D mean, moved onto the surface likewise
+  /// The 3D mean weighted by the field above the place's outline level (v − HotspotOptions::outline_level, or
+  /// the lowest threshold), moved onto the surface likewise: the centre of the pressure above the outline. A
+  /// texel enters or leaves the place with weight 0, so the outline's motion with the noise does not move it
+  /// (weighted by v, each texel the outline takes carries the threshold's weight at the place's widest lever
+  /// arm). Equal to the field-weighted mean for a place symmetric about its centre.
+  Vec3 centre_of_pressure_mm = Vec3::Zero();
   /// 1-σ of the centre of pressure (mm, the root of its covariance's trace: the rms distance to the true
   /// centre) from the per-texel σ, linearly propagated, the texels correlated over HotspotOptions::samples_per_mm2
-  /// (texels without σ, e.g. saturated, add nothing), plus the outline's motion (texels within σ of the
-  /// lowest threshold move it by σ/|∇v|); NaN without a sigma field.
+  /// (texels without σ, e.g. saturated, add nothing; the outline's texels weigh 0, so its motion adds nothing to
+  /// first order); NaN without a sigma field.
   double centre_of_pressure_sigma_mm = std::numeric_limits<double>::quiet_NaN();
   /// 1-σ of the centroid (mm, likewise the rms distance to the true one): it moves only with the outline
   /// (texels within σ of the lowest threshold move it by σ/|∇v|, their noise shared along it over the
@@ -95,6 +100,11 @@ struct HotspotOptions {
   /// the plate beside a bump's wall are one place) and count in unseen_area_mm2,
   /// never as pressure 0.
   double unseen_reach_mm = 1.0;
+  /// The field's level at the places' outline when it is gated above the lowest threshold (NaN: the lowest
+  /// threshold): a calibrated lossy capture's pressure is 0 below its detection gate and reads a detected
+  /// place's tail down to DetectionLimit::tail_kpa only, so a place's texels start there. The centre of
+  /// pressure weighs each texel by its value above the larger of the two.
+  double outline_level = std::numeric_limits<double>::quiet_NaN();
 };
 
 /// Places of `field` (8-connected on the texel grid at the lowest threshold,
