@@ -164,8 +164,8 @@ void print_table(const std::vector<Row>& rows) {
                 r.err.max_um, r.err.validity_diff, r.err.reason_diff, 100 * r.coverage);
   }
   std::printf("\nexact map cold (ray index build + the first exact map, its unprojection included) against the Embree\n"
-              "floor (BVH build + two rtcIntersect16 per pixel), wall clock; and warm in CPU time (the exact map with its\n"
-              "index built and its rays unprojected, against the floor's two casts):\n");
+              "floor (BVH build + two rtcIntersect16 per pixel and per seen-outline ray), wall clock; and warm in CPU\n"
+              "time (the exact map with its index built and its rays unprojected, against the floor's two casts):\n");
   last.clear();
   for (const Row& r : rows) {
     if (last == r.shape + r.size || r.kind != MapOptions::Mode::exact) continue;
@@ -184,7 +184,7 @@ void print_legend(int repeat, bool fresh_memory, const std::string& chart) {
               "# xfloor = time / floor (2 batched ray casts per traced pixel, the second skipping the entry face);\n"
               "#   xfl_rc = time / the floor with Embree's re-cast of refracted rays that re-find their entry face\n"
               "# emb_ms = plain Embree floor's two rtcIntersect16 casts per pixel (4x4 tiles, all cores, BVH prebuilt\n"
-              "#   like the maps' index); xemb = time / emb_ms\n"
+              "#   like the maps' index) and per ray of the seen outline (4x4 per outline pixel); xemb = time / emb_ms\n"
               "# speed = exact time / time; cpu_xf, cpu_sp: the same ratios in process CPU time (all threads,\n"
               "#   best of the runs; steadier than wall time when other processes share the cores)\n"
               "# first_ms = the first (exact) map of the shape and size, with the unprojection (unproj) of its\n"
@@ -384,10 +384,10 @@ Run add_bench_map(CLI::App& app) {
         const RayGrid rays = unproject_image(camera, 1);
         const bench::Floor fl = bench::measure_floor(*scene, rays, pose, exact, exact_opt.indices, o->repeat + 1);
         const bench::EmbreeFloor emb =
-            bench::measure_embree_floor(scene->mesh, rays, pose, exact, exact_opt.indices, o->repeat + 1);
+            bench::measure_embree_floor(scene->mesh, camera, rays, pose, exact, exact_opt.indices, o->repeat + 1);
         std::cerr << "bench: " << shape << " " << size.label() << ": floor " << fl.ms << " ms (" << fl.rays1 << " + "
                   << fl.rays2 << " rays), Embree floor BVH " << emb.build_ms << " + casts " << emb.cast_ms << " ms ("
-                  << emb.rays1 << " + " << emb.rays2 << " rays), coverage " << 100 * exact.stats.coverage << " %\n";
+                  << emb.rays1 << " + " << emb.rays2 << " rays, " << emb.outline_rays << " of the first the outline's), coverage " << 100 * exact.stats.coverage << " %\n";
         double exact_ms = 0, exact_cpu_ms = 0;
         const std::size_t first_row = rows.size();
         for (const ModeSpec& m : modes) {

@@ -6,16 +6,13 @@
 
 #include <algorithm>
 
-namespace clearfit::refraction_detail {
+namespace clearfit {
 
+namespace refraction_detail {
 namespace {
 
-constexpr int kSub = 4;  // rays per side of a pixel's square
-
-/// The pixels whose 8 neighbours (inside the image) do not all share their
-/// seen-or-not, in row-major order. Only pixels of `box` can be seen (the
-/// rest are `outside`), so only the box widened by one pixel is scanned, its
-/// rows in parallel.
+/// seen_outline among the pixels of `box` widened by one pixel (no pixel
+/// beyond it can be seen or border a seen one), its rows in parallel.
 std::vector<std::uint32_t> outline_pixels(const RefractionMap& map, const PixelBox& box) {
   if (box.empty()) return {};
   auto seen = [&](int x, int y) { return map.status[map.index(x, y)] == PixelStatus::valid; };
@@ -48,16 +45,15 @@ void measure_seen_fraction(const MapRun& run) {
     for (std::size_t k = r.begin(); k < r.end(); ++k) map.seen_fraction[k] = map.status[k] == PixelStatus::valid ? 1.f : 0.f;
   });
   const std::vector<std::uint32_t> outline = outline_pixels(map, run.box);
-  constexpr std::size_t kPerPixel = kSub * kSub;
+  constexpr std::size_t kPerPixel = kSeenSub * kSeenSub;
   constexpr std::size_t kBatch = 256;  // outline pixels per task
   tbb::parallel_for(std::size_t{0}, (outline.size() + kBatch - 1) / kBatch, [&](std::size_t b) {
     const std::size_t p0 = b * kBatch, p1 = std::min(outline.size(), p0 + kBatch);
     std::vector<Vec2> points;
     points.reserve((p1 - p0) * kPerPixel);
     for (std::size_t i = p0; i < p1; ++i) {
-      const int x = static_cast<int>(outline[i] % map.width), y = static_cast<int>(outline[i] / map.width);
-      for (int v = 0; v < kSub; ++v)
-        for (int u = 0; u < kSub; ++u) points.emplace_back(x + (u + 0.5) / kSub - 0.5, y + (v + 0.5) / kSub - 0.5);
+      const auto square = seen_sample_points(static_cast<int>(outline[i] % map.width), static_cast<int>(outline[i] / map.width));
+      points.insert(points.end(), square.begin(), square.end());
     }
     std::vector<Vec3> dirs(points.size());
     run.rays.unproject(points, dirs);
@@ -78,4 +74,18 @@ void measure_seen_fraction(const MapRun& run) {
   });
 }
 
-}  // namespace clearfit::refraction_detail
+}  // namespace refraction_detail
+
+std::vector<std::uint32_t> seen_outline(const RefractionMap& map) {
+  return refraction_detail::outline_pixels(map, {0, 0, map.width - 1, map.height - 1});
+}
+
+std::array<Vec2, kSeenSub * kSeenSub> seen_sample_points(int x, int y) {
+  std::array<Vec2, kSeenSub * kSeenSub> points;
+  for (int v = 0; v < kSeenSub; ++v)
+    for (int u = 0; u < kSeenSub; ++u)
+      points[v * kSeenSub + u] = Vec2(x + (u + 0.5) / kSeenSub - 0.5, y + (v + 0.5) / kSeenSub - 0.5);
+  return points;
+}
+
+}  // namespace clearfit

@@ -191,6 +191,16 @@ class PoseError : public InputError {
 RefractionMap compute_refraction_map(const TraceScene& scene, const CameraModel& camera,
                                      const Rigid3& cam_from_part, const MapOptions& options = {});
 
+/// The pixels whose seen_fraction compute_refraction_map measures with rays:
+/// those whose 8 neighbours (inside the image) do not all share their
+/// seen-or-not (status valid), row-major.
+std::vector<std::uint32_t> seen_outline(const RefractionMap& map);
+/// Rays per side of an outline pixel's square for its seen fraction.
+constexpr int kSeenSub = 4;
+/// The points (pixel coordinates) whose rays measure the seen fraction of
+/// pixel (x, y): kSeenSub x kSeenSub over its square, row-major.
+std::array<Vec2, kSeenSub * kSeenSub> seen_sample_points(int x, int y);
+
 /// The map's skin points as a NumPy .npy file: float32, shape (H, W, 3), NaN
 /// where invalid. Written atomically.
 void write_skin_points_npy(const RefractionMap& map, const std::filesystem::path& path);
