@@ -108,16 +108,15 @@ CaptureRenderer::CaptureRenderer(const RefractionMap& map, const ChartField& dri
   const double area = (hi - lo).prod();
   if (area / (tex_mm * tex_mm) > 40e6) tex_mm = std::sqrt(area / 40e6);  // at most ~40 M texels (320 MB)
   tex_grid_ = ChartGrid::covering(lo, hi, tex_mm);
-  tex_m_.resize(tex_grid_.size());
-  tex_b_.resize(tex_grid_.size());
+  tex_mb_.resize(tex_grid_.size());
   const SkinTexture texture(skin_);
   tbb::parallel_for(0, tex_grid_.height, [&](int j) {
     for (int i = 0; i < tex_grid_.width; ++i) {
       const Vec2 uv = tex_grid_.uv(i, j);
       // Skin moved by d: the point seen at uv came from uv − d(uv).
-      tex_m_[tex_grid_.index(i, j)] = static_cast<float>(texture.modulation(texture_shift ? Vec2(uv - texture_shift->at(uv)) : uv));
       const float s = drive.sample(uv);
-      tex_b_[tex_grid_.index(i, j)] = static_cast<float>(steady_blood_loss(skin_, std::isfinite(s) ? s : 0.0));
+      tex_mb_[tex_grid_.index(i, j)] = {static_cast<float>(texture.modulation(texture_shift ? Vec2(uv - texture_shift->at(uv)) : uv)),
+                                        static_cast<float>(steady_blood_loss(skin_, std::isfinite(s) ? s : 0.0))};
     }
   });
   // Gaussian noise pool, in deterministic chunks (each its own generator), filled in parallel.
@@ -134,6 +133,12 @@ CaptureRenderer::CaptureRenderer(const RefractionMap& map, const ChartField& dri
   srgb_lut_.resize(kLutSize);
   for (int i = 0; i < kLutSize; ++i)
     srgb_lut_[i] = static_cast<std::uint8_t>(std::lround(255 * srgb::from_linear(double(i) / (kLutSize - 1))));
+  taps_.resize(map.chart_uv.size());
+  for (std::size_t k = 0; k < taps_.size(); ++k) {
+    const Eigen::Vector2f c = map.chart_uv[k];
+    const bool chart = c.allFinite();
+    taps_[k] = {chart ? c.x() : NAN, chart ? c.y() : NAN, map.transmittance[k], map.status[k] == PixelStatus::valid};
+  }
   row_span_.assign(height_, {1, 0});
   for (int y = 0; y < height_; ++y)
     for (int x = 0; x < width_; ++x)
@@ -143,7 +148,7 @@ CaptureRenderer::CaptureRenderer(const RefractionMap& map, const ChartField& dri
       }
   pixels_.resize(static_cast<std::size_t>(width_) * height_);
   tbb::parallel_for(0, height_, [&](int y) {
-    for (int x = 0; x < width_; ++x) pixels_[static_cast<std::size_t>(y) * width_ + x] = static_pixel(x, y, FrameMotion{});
+    for (int x = 0; x < width_; ++x) pixels_[static_cast<std::size_t>(y) * width_ + x] = static_pixel(x, y);
   });
   for (const Pixel& p : pixels_) skin_pixels_ += p.q[0] > 0;
   setup_ms_ = ms_since(t0);
@@ -151,79 +156,72 @@ CaptureRenderer::CaptureRenderer(const RefractionMap& map, const ChartField& dri
 
 
 // Moments Σ T·m·B^n / n² over the sub-pixel samples of the pixel centred at (px, py).
-void CaptureRenderer::moments(double px, double py, float q[4]) const {
+int CaptureRenderer::moments(double px, double py, float q[4]) const {
   const int n = cam_.supersample;
   double acc[4] = {0, 0, 0, 0};
+  int skin = 0;
   for (int b = 0; b < n; ++b)
     for (int a = 0; a < n; ++a) {
       const double sx = px + (a + 0.5) / n - 0.5, sy = py + (b + 0.5) / n - 0.5;
       const int x0 = static_cast<int>(std::floor(sx)), y0 = static_cast<int>(std::floor(sy));
       const double tx = sx - x0, ty = sy - y0;
-      double wsum = 0, tsum = 0, best_w = -1;
-      Vec2 uv = Vec2::Zero(), best_uv = Vec2::Zero(), first = Vec2::Constant(NAN);
-      bool seam = false;
-      for (int dy = 0; dy < 2; ++dy)
+      double wsum = 0, tsum = 0, best_w = -1, wvalid = 0, uvx = 0, uvy = 0, best_x = 0, best_y = 0, first_x = 0, first_y = 0;
+      bool seam = false, any = false;
+      for (int dy = 0; dy < 2; ++dy) {
+        const int y = y0 + dy;
+        if (y < 0 || y >= height_) continue;
+        const Tap* row = taps_.data() + static_cast<std::size_t>(y) * width_;
         for (int dx = 0; dx < 2; ++dx) {
-          const int x = x0 + dx, y = y0 + dy;
-          if (x < 0 || y < 0 || x >= width_ || y >= height_) continue;
-          const std::size_t k = map_.index(x, y);
-          const Eigen::Vector2f c = map_.chart_uv[k];
-          if (map_.status[k] != PixelStatus::valid || !c.allFinite()) continue;
+          const int x = x0 + dx;
+          if (x < 0 || x >= width_ || !row[x].valid) continue;
+          const Tap& t = row[x];
           const double w = (dx ? tx : 1 - tx) * (dy ? ty : 1 - ty);
-          const Vec2 cd = c.cast<double>();
-          if (!first.allFinite()) first = cd;
-          else if ((cd - first).norm() > 0.5) seam = true;  // a chart seam between the taps
-          wsum += w, uv += w * cd, tsum += w * map_.transmittance[k];
-          if (w > best_w) best_w = w, best_uv = cd;
+          wvalid += w;
+          if (std::isnan(t.u)) continue;
+          const double cx = t.u, cy = t.v;
+          if (!any) first_x = cx, first_y = cy, any = true;
+          else if ((cx - first_x) * (cx - first_x) + (cy - first_y) * (cy - first_y) > 0.25) seam = true;  // a chart seam between the taps
+          wsum += w, uvx += w * cx, uvy += w * cy, tsum += w * t.transmittance;
+          if (w > best_w) best_w = w, best_x = cx, best_y = cy;
         }
+      }
+      skin += wvalid >= 0.5;
       if (wsum < 0.5) continue;  // background sample
-      uv = seam ? best_uv : Vec2(uv / wsum);
+      if (seam) uvx = best_x, uvy = best_y;
+      else uvx /= wsum, uvy /= wsum;
       const double T = tsum / wsum;
       // Bilinear texture read.
-      const double fx = (uv.x() - tex_grid_.uv_origin.x()) / tex_grid_.texel_mm;
-      const double fy = (uv.y() - tex_grid_.uv_origin.y()) / tex_grid_.texel_mm;
+      const double fx = (uvx - tex_grid_.uv_origin.x()) / tex_grid_.texel_mm;
+      const double fy = (uvy - tex_grid_.uv_origin.y()) / tex_grid_.texel_mm;
       const int i0 = std::clamp(static_cast<int>(std::floor(fx)), 0, tex_grid_.width - 2);
       const int j0 = std::clamp(static_cast<int>(std::floor(fy)), 0, tex_grid_.height - 2);
       const double u = std::clamp(fx - i0, 0.0, 1.0), v = std::clamp(fy - j0, 0.0, 1.0);
       const std::size_t k00 = tex_grid_.index(i0, j0), k01 = k00 + tex_grid_.width;
-      const double m = (1 - v) * ((1 - u) * tex_m_[k00] + u * tex_m_[k00 + 1]) + v * ((1 - u) * tex_m_[k01] + u * tex_m_[k01 + 1]);
-      const double B = (1 - v) * ((1 - u) * tex_b_[k00] + u * tex_b_[k00 + 1]) + v * ((1 - u) * tex_b_[k01] + u * tex_b_[k01 + 1]);
+      const auto& t00 = tex_mb_[k00];
+      const auto& t10 = tex_mb_[k00 + 1];
+      const auto& t01 = tex_mb_[k01];
+      const auto& t11 = tex_mb_[k01 + 1];
+      const double m = (1 - v) * ((1 - u) * t00[0] + u * t10[0]) + v * ((1 - u) * t01[0] + u * t11[0]);
+      const double B = (1 - v) * ((1 - u) * t00[1] + u * t10[1]) + v * ((1 - u) * t01[1] + u * t11[1]);
       const double tm = T * m;
       acc[0] += tm, acc[1] += tm * B, acc[2] += tm * B * B, acc[3] += tm * B * B * B;
     }
   for (int k = 0; k < 4; ++k) q[k] = static_cast<float>(acc[k] / (n * n));
+  return skin;
 }
 
-CaptureRenderer::Pixel CaptureRenderer::static_pixel(int x, int y, const FrameMotion& motion, bool with_skin) const {
+CaptureRenderer::Pixel CaptureRenderer::static_pixel(double px, double py, bool with_skin) const {
   Pixel p{};
-  // The reference pixel seen here: q = c + R(−angle)·(p − c − shift).
-  const double cx0 = 0.5 * (width_ - 1), cy0 = 0.5 * (height_ - 1);
-  const double ux = x - cx0 - motion.shift.x(), uy = y - cy0 - motion.shift.y();
-  const double ca = std::cos(motion.angle_rad), sa = std::sin(motion.angle_rad);
-  const double px = cx0 + ca * ux + sa * uy, py = cy0 - sa * ux + ca * uy;
-  if (with_skin) moments(px, py, p.q);
   // Skin fraction of the samples (transmittance aside), for the background share.
   const int n = cam_.supersample;
-  int skin = 0;
-  for (int b = 0; b < n && with_skin; ++b)
-    for (int a = 0; a < n; ++a) {
-      const double sx = px + (a + 0.5) / n - 0.5, sy = py + (b + 0.5) / n - 0.5;
-      const int x0 = static_cast<int>(std::floor(sx)), y0 = static_cast<int>(std::floor(sy));
-      const double tx = sx - x0, ty = sy - y0;
-      double w = 0;
-      for (int dy = 0; dy < 2; ++dy)
-        for (int dx = 0; dx < 2; ++dx) {
-          const int xx = x0 + dx, yy = y0 + dy;
-          if (xx < 0 || yy < 0 || xx >= width_ || yy >= height_ || map_.status[map_.index(xx, yy)] != PixelStatus::valid) continue;
-          w += (dx ? tx : 1 - tx) * (dy ? ty : 1 - ty);
-        }
-      skin += w >= 0.5;
-    }
+  const int skin = with_skin ? moments(px, py, p.q) : 0;
   const double cx = 0.5 * (width_ - 1), cy = 0.5 * (height_ - 1);
   const double r2 = ((px - cx) * (px - cx) + (py - cy) * (py - cy)) / (cx * cx + cy * cy + 1e-12);
   const double illum = cam_.exposure * (1 - cam_.falloff * r2);
   const double sxh = cam_.specular_center.x() * width_, syh = cam_.specular_center.y() * height_, sig = cam_.specular_sigma * width_;
-  const double spec = cam_.specular_peak * std::exp(-((px - sxh) * (px - sxh) + (py - syh) * (py - syh)) / (2 * sig * sig));
+  // The highlight's exponent; beyond 60 (a factor 1e-26) it adds nothing an 8-bit pixel shows.
+  const double spec_exponent = ((px - sxh) * (px - sxh) + (py - syh) * (py - syh)) / (2 * sig * sig);
+  const double spec = cam_.specular_peak != 0 && spec_exponent < 60 ? cam_.specular_peak * std::exp(-spec_exponent) : 0.0;
   p.gain = static_cast<float>(illum);
   p.additive = static_cast<float>(illum * cam_.background * (1 - double(skin) / (n * n)) + spec);
   for (int c = 0; c < 3; ++c) {
@@ -260,6 +258,7 @@ cv::Mat CaptureRenderer::render(double t_s, double h, const FrameMotion& motion,
   const bool moved = motion.moved();
   // Rows and columns a turned pixel can reach beyond its shift.
   const double turn = std::abs(std::sin(motion.angle_rad)) * 0.5 * std::max(width_, height_);
+  const double cx0 = 0.5 * (width_ - 1), cy0 = 0.5 * (height_ - 1), ca = std::cos(motion.angle_rad), sa = std::sin(motion.angle_rad);
   const std::uint64_t fseed = splitmix(seed_ ^ splitmix(frame + 1));
   tbb::parallel_for(tbb::blocked_range<int>(0, height_, 8), [&](const tbb::blocked_range<int>& rows) {
     std::vector<Pixel> moved_row(moved ? width_ : 0);
@@ -271,7 +270,12 @@ cv::Mat CaptureRenderer::render(double t_s, double h, const FrameMotion& motion,
         for (int yy = std::max(0, yc - 1 - reach); yy <= std::min(height_ - 1, yc + 2 + reach); ++yy)
           if (row_span_[yy].first <= row_span_[yy].second) lo = std::min(lo, row_span_[yy].first), hi = std::max(hi, row_span_[yy].second);
         const int pad = static_cast<int>(std::ceil(std::abs(shift.x()) + turn)) + 2;
-        for (int x = 0; x < width_; ++x) moved_row[x] = static_pixel(x, y, motion, x >= lo - pad && x <= hi + pad);
+        // The still view's point seen at (x, y): q = c + R(−angle)·(p − c − shift).
+        const double uy = y - cy0 - shift.y();
+        for (int x = 0; x < width_; ++x) {
+          const double ux = x - cx0 - shift.x();
+          moved_row[x] = static_pixel(cx0 + ca * ux + sa * uy, cy0 - sa * ux + ca * uy, x >= lo - pad && x <= hi + pad);
+        }
       }
       const Pixel* row = moved ? moved_row.data() : &pixels_[static_cast<std::size_t>(y) * width_];
       std::uint8_t* o = out.ptr<std::uint8_t>(y);

@@ -27,6 +27,7 @@
 
 #include <opencv2/core.hpp>
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <functional>
@@ -251,9 +252,12 @@ class CaptureRenderer {
     float additive;  ///< specular + background (linear)
     float sigma[3];  ///< noise std (linear) per channel
   };
-  void moments(double x, double y, float q[4]) const;
-  /// skin = false: a pixel known to see no skin (no sampling).
-  Pixel static_pixel(int x, int y, const FrameMotion& motion, bool skin = true) const;
+  /// The moments of the pixel centred at (x, y) of the still view; returns how many of its
+  /// samples fall on skin (their taps' weight on valid pixels at least one half).
+  int moments(double x, double y, float q[4]) const;
+  /// The pixel whose centre lies at (px, py) of the still view (a moved frame's pixel, mapped
+  /// back); skin = false: a pixel known to see no skin (no sampling).
+  Pixel static_pixel(double px, double py, bool skin = true) const;
 
   const RefractionMap& map_;
   SkinParameters skin_;
@@ -261,7 +265,13 @@ class CaptureRenderer {
   std::uint64_t seed_;
   int width_, height_;
   ChartGrid tex_grid_;
-  std::vector<float> tex_m_, tex_b_;  ///< fine texture: modulation, steady blood loss
+  std::vector<std::array<float, 2>> tex_mb_;  ///< fine texture: modulation and steady blood loss per texel
+  /// A map pixel as the samples read it: chart uv (NaN where it has none), transmittance, valid.
+  struct Tap {
+    float u, v, transmittance;
+    bool valid;
+  };
+  std::vector<Tap> taps_;
   std::vector<Pixel> pixels_;
   std::vector<std::pair<int, int>> row_span_;  ///< per image row: first and last valid map pixel (1, 0 if none)
   std::vector<float> noise_pool_;
