@@ -137,8 +137,18 @@ CaptureRenderer::CaptureRenderer(const RefractionMap& map, const ChartField& dri
   for (std::size_t k = 0; k < taps_.size(); ++k) {
     const Eigen::Vector2f c = map.chart_uv[k];
     const bool chart = c.allFinite();
-    taps_[k] = {chart ? c.x() : NAN, chart ? c.y() : NAN, map.transmittance[k], map.status[k] == PixelStatus::valid};
+    taps_[k] = {chart ? c.x() : NAN, chart ? c.y() : NAN, map.transmittance[k], map.status[k] == PixelStatus::valid, false};
   }
+  for (int y = 0; y + 1 < height_; ++y)
+    for (int x = 0; x + 1 < width_; ++x) {
+      Tap* t = &taps_[static_cast<std::size_t>(y) * width_ + x];
+      bool cell = true;
+      for (const Tap* o : {t, t + 1, t + width_, t + width_ + 1}) {
+        const double du = double(o->u) - t->u, dv = double(o->v) - t->v;
+        cell = cell && o->valid && !std::isnan(o->u) && !(du * du + dv * dv > 0.25);
+      }
+      t->cell = cell;
+    }
   row_span_.assign(height_, {1, 0});
   for (int y = 0; y < height_; ++y)
     for (int x = 0; x < width_; ++x)
@@ -155,44 +165,69 @@ CaptureRenderer::CaptureRenderer(const RefractionMap& map, const ChartField& dri
 }
 
 
+// The taps' bilinear read at a sub-pixel sample (sx, sy): `skin` counts the sample when its taps' weight on valid
+// pixels is at least one half; false for a background sample (its weight on charted pixels under one half). Where
+// a chart seam runs between the taps, the uv of the heaviest tap.
+bool CaptureRenderer::read_taps(double sx, double sy, int& skin, SampleRead& out) const {
+  const int x0 = static_cast<int>(std::floor(sx)), y0 = static_cast<int>(std::floor(sy));
+  const double tx = sx - x0, ty = sy - y0;
+  if (x0 >= 0 && y0 >= 0 && x0 + 1 < width_ && y0 + 1 < height_) {
+    const Tap* t = taps_.data() + static_cast<std::size_t>(y0) * width_ + x0;
+    if (t->cell) {  // four valid charted taps without a seam (most samples): the general sums below, in their order
+      const Tap &t00 = t[0], &t10 = t[1], &t01 = t[width_], &t11 = t[width_ + 1];
+      const double w00 = (1 - tx) * (1 - ty), w10 = tx * (1 - ty), w01 = (1 - tx) * ty, w11 = tx * ty;
+      const double wsum = w00 + w10 + w01 + w11;
+      skin += wsum >= 0.5;
+      if (wsum < 0.5) return false;
+      out.u = (w00 * t00.u + w10 * t10.u + w01 * t01.u + w11 * t11.u) / wsum;
+      out.v = (w00 * t00.v + w10 * t10.v + w01 * t01.v + w11 * t11.v) / wsum;
+      out.transmittance =
+          (w00 * t00.transmittance + w10 * t10.transmittance + w01 * t01.transmittance + w11 * t11.transmittance) / wsum;
+      return true;
+    }
+  }
+  double wsum = 0, tsum = 0, best_w = -1, wvalid = 0, uvx = 0, uvy = 0, best_x = 0, best_y = 0, first_x = 0, first_y = 0;
+  bool seam = false, any = false;
+  for (int dy = 0; dy < 2; ++dy) {
+    const int y = y0 + dy;
+    if (y < 0 || y >= height_) continue;
+    const Tap* row = taps_.data() + static_cast<std::size_t>(y) * width_;
+    for (int dx = 0; dx < 2; ++dx) {
+      const int x = x0 + dx;
+      if (x < 0 || x >= width_ || !row[x].valid) continue;
+      const Tap& t = row[x];
+      const double w = (dx ? tx : 1 - tx) * (dy ? ty : 1 - ty);
+      wvalid += w;
+      if (std::isnan(t.u)) continue;
+      const double cx = t.u, cy = t.v;
+      if (!any) first_x = cx, first_y = cy, any = true;
+      else if ((cx - first_x) * (cx - first_x) + (cy - first_y) * (cy - first_y) > 0.25) seam = true;  // a chart seam between the taps
+      wsum += w, uvx += w * cx, uvy += w * cy, tsum += w * t.transmittance;
+      if (w > best_w) best_w = w, best_x = cx, best_y = cy;
+    }
+  }
+  skin += wvalid >= 0.5;
+  if (wsum < 0.5) return false;  // background sample
+  if (seam) uvx = best_x, uvy = best_y;
+  else uvx /= wsum, uvy /= wsum;
+  out = {uvx, uvy, tsum / wsum};
+  return true;
+}
+
 // Moments Σ T·m·B^n / n² over the sub-pixel samples of the pixel centred at (px, py).
 int CaptureRenderer::moments(double px, double py, float q[4]) const {
   const int n = cam_.supersample;
+  double offset[4];  // the samples' offsets in the pixel, (a + ½)/n
+  for (int a = 0; a < n; ++a) offset[a] = (a + 0.5) / n;
   double acc[4] = {0, 0, 0, 0};
   int skin = 0;
+  SampleRead r;
   for (int b = 0; b < n; ++b)
     for (int a = 0; a < n; ++a) {
-      const double sx = px + (a + 0.5) / n - 0.5, sy = py + (b + 0.5) / n - 0.5;
-      const int x0 = static_cast<int>(std::floor(sx)), y0 = static_cast<int>(std::floor(sy));
-      const double tx = sx - x0, ty = sy - y0;
-      double wsum = 0, tsum = 0, best_w = -1, wvalid = 0, uvx = 0, uvy = 0, best_x = 0, best_y = 0, first_x = 0, first_y = 0;
-      bool seam = false, any = false;
-      for (int dy = 0; dy < 2; ++dy) {
-        const int y = y0 + dy;
-        if (y < 0 || y >= height_) continue;
-        const Tap* row = taps_.data() + static_cast<std::size_t>(y) * width_;
-        for (int dx = 0; dx < 2; ++dx) {
-          const int x = x0 + dx;
-          if (x < 0 || x >= width_ || !row[x].valid) continue;
-          const Tap& t = row[x];
-          const double w = (dx ? tx : 1 - tx) * (dy ? ty : 1 - ty);
-          wvalid += w;
-          if (std::isnan(t.u)) continue;
-          const double cx = t.u, cy = t.v;
-          if (!any) first_x = cx, first_y = cy, any = true;
-          else if ((cx - first_x) * (cx - first_x) + (cy - first_y) * (cy - first_y) > 0.25) seam = true;  // a chart seam between the taps
-          wsum += w, uvx += w * cx, uvy += w * cy, tsum += w * t.transmittance;
-          if (w > best_w) best_w = w, best_x = cx, best_y = cy;
-        }
-      }
-      skin += wvalid >= 0.5;
-      if (wsum < 0.5) continue;  // background sample
-      if (seam) uvx = best_x, uvy = best_y;
-      else uvx /= wsum, uvy /= wsum;
-      const double T = tsum / wsum;
+      if (!read_taps(px + offset[a] - 0.5, py + offset[b] - 0.5, skin, r)) continue;  // background sample
       // Bilinear texture read.
-      const double fx = (uvx - tex_grid_.uv_origin.x()) / tex_grid_.texel_mm;
-      const double fy = (uvy - tex_grid_.uv_origin.y()) / tex_grid_.texel_mm;
+      const double fx = (r.u - tex_grid_.uv_origin.x()) / tex_grid_.texel_mm;
+      const double fy = (r.v - tex_grid_.uv_origin.y()) / tex_grid_.texel_mm;
       const int i0 = std::clamp(static_cast<int>(std::floor(fx)), 0, tex_grid_.width - 2);
       const int j0 = std::clamp(static_cast<int>(std::floor(fy)), 0, tex_grid_.height - 2);
       const double u = std::clamp(fx - i0, 0.0, 1.0), v = std::clamp(fy - j0, 0.0, 1.0);
@@ -203,7 +238,7 @@ int CaptureRenderer::moments(double px, double py, float q[4]) const {
       const auto& t11 = tex_mb_[k01 + 1];
       const double m = (1 - v) * ((1 - u) * t00[0] + u * t10[0]) + v * ((1 - u) * t01[0] + u * t11[0]);
       const double B = (1 - v) * ((1 - u) * t00[1] + u * t10[1]) + v * ((1 - u) * t01[1] + u * t11[1]);
-      const double tm = T * m;
+      const double tm = r.transmittance * m;
       acc[0] += tm, acc[1] += tm * B, acc[2] += tm * B * B, acc[3] += tm * B * B * B;
     }
   for (int k = 0; k < 4; ++k) q[k] = static_cast<float>(acc[k] / (n * n));
@@ -224,10 +259,12 @@ CaptureRenderer::Pixel CaptureRenderer::static_pixel(double px, double py, bool 
   const double spec = cam_.specular_peak != 0 && spec_exponent < 60 ? cam_.specular_peak * std::exp(-spec_exponent) : 0.0;
   p.gain = static_cast<float>(illum);
   p.additive = static_cast<float>(illum * cam_.background * (1 - double(skin) / (n * n)) + spec);
-  for (int c = 0; c < 3; ++c) {
+  // No skin seen (q = 0): one level for the three channels, and one square root.
+  for (int c = 0; c < (p.q[0] == 0 ? 1 : 3); ++c) {
     const double level = std::max(0.0, illum * skin_.tone.reflectance[c] * p.q[0] + p.additive);
     p.sigma[c] = static_cast<float>(std::sqrt(level * cam_.full_well_e + cam_.read_noise_e * cam_.read_noise_e) / cam_.full_well_e);
   }
+  if (p.q[0] == 0) p.sigma[1] = p.sigma[2] = p.sigma[0];
   return p;
 }
 

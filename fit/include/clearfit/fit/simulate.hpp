@@ -266,11 +266,17 @@ class CaptureRenderer {
   int width_, height_;
   ChartGrid tex_grid_;
   std::vector<std::array<float, 2>> tex_mb_;  ///< fine texture: modulation and steady blood loss per texel
-  /// A map pixel as the samples read it: chart uv (NaN where it has none), transmittance, valid.
+  /// A map pixel as the samples read it: chart uv (NaN where it has none), transmittance, valid; `cell`: the
+  /// taps of the cell it starts (it, right, below, below right) are all valid with chart uv and no seam between them.
   struct Tap {
     float u, v, transmittance;
-    bool valid;
+    bool valid, cell;
   };
+  /// The bilinear read of the taps around a sub-pixel sample at (sx, sy); false for a background sample.
+  struct SampleRead {
+    double u, v, transmittance;
+  };
+  bool read_taps(double sx, double sy, int& skin, SampleRead& out) const;
   std::vector<Tap> taps_;
   std::vector<Pixel> pixels_;
   std::vector<std::pair<int, int>> row_span_;  ///< per image row: first and last valid map pixel (1, 0 if none)
