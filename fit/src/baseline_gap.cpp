@@ -4,10 +4,12 @@
 #include <clearfit/fit/blanching.hpp>
 
 #include <opencv2/imgproc.hpp>
+#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <map>
 #include <random>
 #include <sstream>
 
@@ -78,8 +80,31 @@ bool uniform(const std::vector<float>& values) {
   return !(hi > lo);
 }
 
-/// Chart uv of each sample at one gap (NaN where the baseline map is invalid).
-std::vector<Vec2> uv_at(const BaselineRays& rays, const Samples& s, double gap) { return rays.chart_uv(gap, s.ray); }
+/// Chart uv of each sample at a gap (NaN where the baseline map is invalid), each gap landed once for the
+/// samples' rays (the coarse grid is searched up to three times) and the gaps a stage asks for at once landed
+/// in parallel. The samples' rays do not change (move_samples reads them elsewhere in the image, not other rays).
+class GapUv {
+ public:
+  GapUv(const BaselineRays& rays, const Samples& s) : rays_(rays), s_(s) {}
+  /// Lands the gaps not landed yet, in parallel (each is one offset skin surface and its rays).
+  void land(const std::vector<double>& gaps) {
+    std::vector<double> todo;
+    for (double g : gaps)
+      if (!memo_.count(g) && std::find(todo.begin(), todo.end(), g) == todo.end()) todo.push_back(g);
+    std::vector<std::vector<Vec2>> uv(todo.size());
+    tbb::parallel_for(std::size_t(0), todo.size(), [&](std::size_t k) { uv[k] = rays_.chart_uv(todo[k], s_.ray); });
+    for (std::size_t k = 0; k < todo.size(); ++k) memo_.emplace(todo[k], std::move(uv[k]));
+  }
+  const std::vector<Vec2>& operator()(double gap) {
+    land({gap});
+    return memo_.at(gap);
+  }
+
+ private:
+  const BaselineRays& rays_;
+  const Samples& s_;
+  std::map<double, std::vector<Vec2>> memo_;
+};
 
 /// Camera pixels per mm of skin at the baseline map of `gap` (median over horizontal neighbours).
 double pixels_per_mm(const BaselineRays& rays, double gap) {
@@ -217,31 +242,34 @@ struct Fine {
   double gap = NAN, sigma = NAN, match = 0, shift = 0;
   long long pixels = 0;
 };
-Fine fine_fit(const BaselineRays& rays, const Samples& s, const ChartField& worn_texture, const std::vector<char>& keep,
+Fine fine_fit(GapUv& uv_at, const Samples& s, const ChartField& worn_texture, const std::vector<char>& keep,
               double centre, const GapSearchOptions& o) {
   const double d = o.step_mm / 2;
   const double lo = std::clamp(centre - 2 * d, 0.0, o.max_mm - 4 * d);
   std::vector<double> gaps;
-  std::vector<std::vector<Vec2>> uv;
-  for (int j = 0; j < 5; ++j) gaps.push_back(lo + j * d), uv.push_back(uv_at(rays, s, gaps.back()));
+  for (int j = 0; j < 5; ++j) gaps.push_back(lo + j * d);
+  uv_at.land(gaps);
+  std::vector<const std::vector<Vec2>*> uv_of;
+  for (double g : gaps) uv_of.push_back(&uv_at(g));
+  auto uv = [&uv_of](int j) -> const std::vector<Vec2>& { return *uv_of[j]; };
   // Pixels compared at every gap.
   std::vector<char> use = keep;
   std::vector<std::array<float, 5>> y(s.ray.size());
   for (std::size_t i = 0; i < s.ray.size(); ++i) {
     if (!std::isfinite(s.texture[i])) use[i] = 0;
     for (int j = 0; j < 5 && use[i]; ++j) {
-      y[i][j] = uv[j][i].allFinite() ? worn_texture.sample(uv[j][i]) : kNaN;
+      y[i][j] = uv(j)[i].allFinite() ? worn_texture.sample(uv(j)[i]) : kNaN;
       if (!std::isfinite(y[i][j])) use[i] = 0;
     }
   }
   Fine f;
-  f.match = correlation(s, uv[2], worn_texture, use, &f.pixels);
+  f.match = correlation(s, uv(2), worn_texture, use, &f.pixels);
   double sxy = 0, syy = 0;
   std::vector<double> shifts;
   for (std::size_t i = 0; i < s.ray.size(); ++i)
     if (use[i]) {
       sxy += s.texture[i] * y[i][2], syy += double(y[i][2]) * y[i][2];
-      if (shifts.size() < 50000) shifts.push_back((uv[4][i] - uv[0][i]).norm() / (gaps[4] - gaps[0]));
+      if (shifts.size() < 50000) shifts.push_back((uv(4)[i] - uv(0)[i]).norm() / (gaps[4] - gaps[0]));
     }
   f.shift = median(std::move(shifts));
   if (f.pixels < 100 || !(syy > 0)) return f;
@@ -398,14 +426,16 @@ ChartField worn_texture_of(const ChartField& worn_log, const GapSearchOptions& o
 
 /// Stage 1: the correlation every step_mm over [0, max_mm] (into e.curve); the best gap's index
 /// and, between its neighbours, the parabola's vertex.
-std::pair<int, double> coarse_search(const BaselineRays& rays, const Samples& s, const ChartField& worn_texture, const GapSearchOptions& o,
+std::pair<int, double> coarse_search(GapUv& uv_at, const Samples& s, const ChartField& worn_texture, const GapSearchOptions& o,
                                      GapEstimate& e) {
   const std::vector<char> everything(s.ray.size(), 1);
   int best = -1;
-  std::vector<double> cost;
+  std::vector<double> cost, grid;
   e.curve.clear();
-  for (double g = 0; g <= o.max_mm + 1e-9; g += o.step_mm) {
-    cost.push_back(1 - correlation(s, uv_at(rays, s, g), worn_texture, everything));
+  for (double g = 0; g <= o.max_mm + 1e-9; g += o.step_mm) grid.push_back(g);
+  uv_at.land(grid);
+  for (double g : grid) {
+    cost.push_back(1 - correlation(s, uv_at(g), worn_texture, everything));
     e.curve.emplace_back(g, cost.back());
     if (best < 0 || cost.back() < cost[best]) best = static_cast<int>(cost.size()) - 1;
   }
@@ -420,10 +450,10 @@ std::pair<int, double> coarse_search(const BaselineRays& rays, const Samples& s,
 
 /// The motion between the phases at `gap`, with the pressed places there left out; the samples are
 /// moved by it and e.phase_shift_* filled. False when it could not be measured (samples unmoved).
-bool measure_phase_shift(const BaselineRays& rays, Samples& s, const ChartField& worn_texture, const ChartField& worn_log, double gap,
+bool measure_phase_shift(GapUv& uv_at, Samples& s, const ChartField& worn_texture, const ChartField& worn_log, double gap,
                          const GapSearchOptions& o, GapEstimate& e) {
   move_samples(s, Vec2::Zero());
-  const std::vector<Vec2> uv = uv_at(rays, s, gap);
+  const std::vector<Vec2>& uv = uv_at(gap);
   const ShiftFit sf = fit_shift(s, uv, worn_texture, not_pressed(s, uv, worn_log), o);
   e.phase_shift_measured = sf.converged && sf.sigma.allFinite();
   e.phase_shift_px = e.phase_shift_measured ? sf.shift : Vec2::Zero();
@@ -444,20 +474,21 @@ GapEstimate estimate_gap(const BaselineRays& rays, const PhaseAverage& baseline,
   const ChartField worn_log = log_field(worn_green);
   const ChartField worn_texture = worn_texture_of(worn_log, o);
   Samples s = samples_for(rays, baseline, o);
+  GapUv uv_at(rays, s);
   // 1. Coarse; with the motion between the phases measured at its best gap and taken out, again.
-  auto [best, centre] = coarse_search(rays, s, worn_texture, o, e);
+  auto [best, centre] = coarse_search(uv_at, s, worn_texture, o, e);
   if (o.max_shift_px > 0)
     for (int pass = 0; pass < 2; ++pass)
-      if (measure_phase_shift(rays, s, worn_texture, worn_log, centre, o, e)) std::tie(best, centre) = coarse_search(rays, s, worn_texture, o, e);
+      if (measure_phase_shift(uv_at, s, worn_texture, worn_log, centre, o, e)) std::tie(best, centre) = coarse_search(uv_at, s, worn_texture, o, e);
   const int last = static_cast<int>(e.curve.size()) - 1;
   std::vector<double> cost;
   for (const auto& c : e.curve) cost.push_back(c.second);
   // 2. Pressed places out, 3. fine.
-  const std::vector<char> keep = not_pressed(s, uv_at(rays, s, centre), worn_log);
+  const std::vector<char> keep = not_pressed(s, uv_at(centre), worn_log);
   for (char k : keep) e.pressed_pixels += !k;
   Fine f;
   for (int iter = 0; iter < 4; ++iter) {
-    f = fine_fit(rays, s, worn_texture, keep, centre, o);
+    f = fine_fit(uv_at, s, worn_texture, keep, centre, o);
     if (!std::isfinite(f.gap)) break;
     const double d = o.step_mm / 2, lo = std::clamp(centre - 2 * d, 0.0, o.max_mm - 4 * d);
     if (f.gap >= lo - 0.25 * d && f.gap <= lo + 4.25 * d) break;
@@ -465,7 +496,7 @@ GapEstimate estimate_gap(const BaselineRays& rays, const PhaseAverage& baseline,
   }
   e.gap_mm = std::isfinite(f.gap) ? std::clamp(f.gap, 0.0, o.max_mm) : centre;
   e.sigma_mm = std::isfinite(f.sigma) ? f.sigma : o.max_mm;
-  if (e.phase_shift_measured) measure_phase_shift(rays, s, worn_texture, worn_log, e.gap_mm, o, e);
+  if (e.phase_shift_measured) measure_phase_shift(uv_at, s, worn_texture, worn_log, e.gap_mm, o, e);
   e.match = f.match;
   e.shift_mm_per_mm = std::isfinite(f.shift) ? f.shift : 0;
   e.pixels = f.pixels;
