@@ -16,6 +16,7 @@
 
 #include <clearfit/atomic_file.hpp>
 #include <nlohmann/json.hpp>
+#include <tbb/task_group.h>
 
 #include <chrono>
 #include <functional>
@@ -132,31 +133,42 @@ void read_pressure_map(SimulationSection& spec, const Chart& chart) {
 /// the part is held off the skin or absent. Keeps references to `map` and `drive`, which must outlive it.
 struct FrameRenderers {
   FrameRenderers(const LoadedPart& part, const RefractionMap& map, const ChartField& drive, const sim::PressureTruth& truth,
-                 const SimulationSection& spec, const Say& say)
-      : touching(map, drive, spec.skin, spec.camera, spec.seed) {
-    if (spec.baseline.part != BaselinePart::touching) {
-      baseline_map.emplace(compute_baseline_map(part.trace_scene(), part.camera, part.cam_from_part, part.map_options,
-                                                spec.baseline.part, spec.baseline.gap_mm, map));
-      baseline_renderer.emplace(*baseline_map, drive, spec.skin, spec.camera, spec.seed);
+                 const SimulationSection& spec, const Say& say) {
+    // The three renderers are built side by side (each is parallel inside, with serial stretches: the baseline
+    // map's ray setup, the renderers' tables).
+    tbb::task_group build;
+    // The skin as it lies, through the part's map: the worn frames' unless the skin moved, the not-worn frames'
+    // when the part touches then too (not built when no frame uses it: its texture and still view cost about a frame).
+    if (!spec.skin_motion.any() || spec.baseline.part == BaselinePart::touching)
+      build.run([&] { touching.emplace(map, drive, spec.skin, spec.camera, spec.seed); });
+    if (spec.baseline.part != BaselinePart::touching)
+      build.run([&] {
+        baseline_map.emplace(compute_baseline_map(part.trace_scene(), part.camera, part.cam_from_part, part.map_options,
+                                                  spec.baseline.part, spec.baseline.gap_mm, map));
+        baseline_renderer.emplace(*baseline_map, drive, spec.skin, spec.camera, spec.seed);
+      });
+    if (spec.skin_motion.any())
+      build.run([&] {
+        skin_moved = sim::skin_displacement(spec.skin_motion, truth.pressure);
+        moved_renderer.emplace(map, drive, spec.skin, spec.camera, spec.seed, &*skin_moved);
+      });
+    build.wait();
+    if (baseline_map) {
       std::ostringstream b;
       b << "baseline: part " << to_string(spec.baseline.part) << ", skin " << spec.baseline.gap_mm << " mm beyond the contact surface, "
         << baseline_map->stats.by_status[0] << " pixels see it";
       say(b.str());
     }
-    if (spec.skin_motion.any()) {
-      skin_moved = sim::skin_displacement(spec.skin_motion, truth.pressure);
-      moved_renderer.emplace(map, drive, spec.skin, spec.camera, spec.seed, &*skin_moved);
-    }
   }
   FrameRenderers(const FrameRenderers&) = delete;
   FrameRenderers& operator=(const FrameRenderers&) = delete;
-  const sim::CaptureRenderer& worn() const { return moved_renderer ? *moved_renderer : touching; }
+  const sim::CaptureRenderer& worn() const { return moved_renderer ? *moved_renderer : *touching; }
   /// The not-worn frames' renderer when it is not the worn one.
   const sim::CaptureRenderer* baseline() const {
-    return baseline_renderer ? &*baseline_renderer : moved_renderer ? &touching : nullptr;
+    return baseline_renderer ? &*baseline_renderer : moved_renderer ? &*touching : nullptr;
   }
 
-  sim::CaptureRenderer touching;                          ///< through the part's map, the skin as it lies
+  std::optional<sim::CaptureRenderer> touching;           ///< through the part's map, the skin as it lies (when a frame uses it)
   std::optional<RefractionMap> baseline_map;              ///< the not-worn geometry's own map (held, absent)
   std::optional<sim::CaptureRenderer> baseline_renderer;  ///< through baseline_map
   std::optional<sim::SkinDisplacement> skin_moved;        ///< the worn frames' texture displacement on the chart

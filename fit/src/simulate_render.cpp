@@ -179,10 +179,9 @@ bool CaptureRenderer::read_taps(double sx, double sy, int& skin, SampleRead& out
       const double wsum = w00 + w10 + w01 + w11;
       skin += wsum >= 0.5;
       if (wsum < 0.5) return false;
-      out.u = (w00 * t00.u + w10 * t10.u + w01 * t01.u + w11 * t11.u) / wsum;
-      out.v = (w00 * t00.v + w10 * t10.v + w01 * t01.v + w11 * t11.v) / wsum;
-      out.transmittance =
-          (w00 * t00.transmittance + w10 * t10.transmittance + w01 * t01.transmittance + w11 * t11.transmittance) / wsum;
+      out = {w00 * t00.u + w10 * t10.u + w01 * t01.u + w11 * t11.u, w00 * t00.v + w10 * t10.v + w01 * t01.v + w11 * t11.v,
+             w00 * t00.transmittance + w10 * t10.transmittance + w01 * t01.transmittance + w11 * t11.transmittance};
+      if (wsum != 1) out = {out.u / wsum, out.v / wsum, out.transmittance / wsum};  // the weights often sum to exactly 1
       return true;
     }
   }
