@@ -258,6 +258,9 @@ class CaptureRenderer {
   /// The pixel whose centre lies at (px, py) of the still view (a moved frame's pixel, mapped
   /// back); skin = false: a pixel known to see no skin (no sampling).
   Pixel static_pixel(double px, double py, bool skin = true) const;
+  /// static_pixel(q, false) of the moved frame's row pixels x0..x1 − 1 (row offset uy from the centre less the shift,
+  /// the shift's x, the turn's cos and sin) into out[0 .. x1 − x0).
+  void background_pixels(int x0, int x1, double uy, double shift_x, double ca, double sa, Pixel* out) const;
 
   const RefractionMap& map_;
   SkinParameters skin_;
