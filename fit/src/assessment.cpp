@@ -1,5 +1,10 @@
 #include <algorithm>
+#include <array>
 #include <chrono>
+#include <exception>
+#include <functional>
+#include <future>
+#include <mutex>
 #include <climits>
 #include <clearfit/error.hpp>
 #include <clearfit/format.hpp>
@@ -260,35 +265,40 @@ void read_phases(const AssessmentScene& scene, const CaptureSources& captures, b
   // registration too: the skin's move between the phases is the registration's, not the camera's.
   MotionReference reference, worn_reference;
   if (o.timeseries.enabled) o.timeseries.validate();
-  auto read = [&](const std::filesystem::path& path, const std::string& role, std::optional<TimeSeriesRecorder>* series) {
-    ro.role = role;
+  // One read: its own copy of the options (both phases may be read at once), its times added by the caller.
+  auto read = [&](const std::filesystem::path& path, const std::string& role, std::optional<TimeSeriesRecorder>* series,
+                  std::function<void(int, int)> progress) {
+    CaptureReadOptions r = ro;
+    r.role = role;
     MotionReference& ref = (own_geometry || o.phase_registration.enabled) && role == "worn" ? worn_reference : reference;
-    ro.on_frame = nullptr;
-    if (o.timeseries.enabled && series && ro.roi.area() > 0) {
-      series->emplace(ro.roi & cv::Rect(0, 0, map.width, map.height), o.timeseries);
-      ro.on_frame = [series](const cv::Mat& frame, cv::Point shift) { (*series)->add(frame, shift); };
+    r.on_frame = nullptr;
+    if (o.timeseries.enabled && series && r.roi.area() > 0) {
+      series->emplace(r.roi & cv::Rect(0, 0, map.width, map.height), o.timeseries);
+      r.on_frame = [series](const cv::Mat& frame, cv::Point shift) { (*series)->add(frame, shift); };
     }
-    ro.progress = [&](int done, int total) {
-      if (o.progress) o.progress(series ? "reading the " + role + " capture" : "reading the " + role + " again, for its windows", done, total);
-    };
-    CaptureSums sums = read_capture(path, ro, ref);
-    a.read_ms += sums.read_ms;
-    a.work_ms += sums.work_ms;
-    return sums;
+    r.progress = std::move(progress);
+    return read_capture(path, r, ref);
   };
-
+  auto progress_of = [&](const std::string& stage) {
+    return [&o, stage](int done, int total) {
+      if (o.progress) o.progress(stage, done, total);
+    };
+  };
+  auto add_times = [&a](const CaptureSums& sums) { a.read_ms += sums.read_ms, a.work_ms += sums.work_ms; };
   const bool split_mode = !captures.both.empty();
   if (split_mode) {
     // The not-worn phase's own geometry changes the view at the press (and back at the removal):
     // a registration reference per geometry (capture.hpp).
     if (own_geometry) ro.max_references = 4;
     ro.max_sums_mb = o.max_sums_mb;
-    CaptureSums sums = read(captures.both, "capture", &p.worn_series);
+    CaptureSums sums = read(captures.both, "capture", &p.worn_series, progress_of("reading the capture capture"));
+    add_times(sums);
     const PhaseSplit split = split_phases(sums, o.window_frames);
     if (sums.sums_dropped) {  // a long capture: read again for its two windows only (bounded memory)
       ro.max_sums_mb = 0;
       ro.keep_windows = {split.baseline, split.worn};
-      sums = read(captures.both, "capture", nullptr);
+      sums = read(captures.both, "capture", nullptr, progress_of("reading the capture again, for its windows"));
+      add_times(sums);
     }
     p.base_avg = average_window(sums, split.baseline, o.window_frames, o.normalise_gains);
     p.worn_avg = average_window(sums, split.worn, o.window_frames, o.normalise_gains);
@@ -304,10 +314,38 @@ void read_phases(const AssessmentScene& scene, const CaptureSources& captures, b
                        "see the scene file format in README.md");
     // Each capture's window is its last frames: only those chunk sums are kept (bounded memory).
     ro.keep_last_frames = o.window_frames + 2 * o.chunk_frames;
-    const CaptureSums base = read(captures.baseline, "baseline", &p.base_series);
+    std::optional<CaptureSums> base_read, worn_read;
+    if (own_geometry || o.phase_registration.enabled) {
+      // The worn capture has a registration reference of its own: both are read at once (each read is a decoding
+      // thread and the work on its frames, which alone leaves part of the machine idle), with one progress.
+      std::mutex m;
+      std::array<int, 2> done{0, 0}, total{0, 0};
+      auto share = [&](int k) {
+        return [&, k](int d, int t) {
+          const std::lock_guard<std::mutex> lock(m);
+          done[k] = d, total[k] = t;
+          const bool known = total[0] > 0 && total[1] > 0;  // percentages once both captures' lengths are known
+          if (o.progress) o.progress("reading the baseline and worn captures", done[0] + done[1], known ? total[0] + total[1] : 0);
+        };
+      };
+      auto base_task = std::async(std::launch::async, [&] { return read(captures.baseline, "baseline", &p.base_series, share(0)); });
+      std::exception_ptr worn_failed;
+      try {
+        worn_read = read(captures.worn, "worn", &p.worn_series, share(1));
+      } catch (...) {
+        worn_failed = std::current_exception();
+      }
+      base_read = base_task.get();  // the baseline's failure first, as when read one after the other
+      if (worn_failed) std::rethrow_exception(worn_failed);
+    } else {  // the worn capture is registered to the baseline's first frames
+      base_read = read(captures.baseline, "baseline", &p.base_series, progress_of("reading the baseline capture"));
+      worn_read = read(captures.worn, "worn", &p.worn_series, progress_of("reading the worn capture"));
+    }
+    const CaptureSums& base = *base_read;
+    const CaptureSums& worn = *worn_read;
+    add_times(base), add_times(worn);
     p.base_avg = average_window(base, last_frames(base, o.window_frames), o.window_frames, o.normalise_gains);
     a.baseline = phase_report(base, p.base_avg, o.compensate_motion);
-    const CaptureSums worn = read(captures.worn, "worn", &p.worn_series);
     p.worn_avg = average_window(worn, last_frames(worn, o.window_frames), o.window_frames, o.normalise_gains);
     a.worn = phase_report(worn, p.worn_avg, o.compensate_motion);
     p.worn_frame = worn.last_frame;
