@@ -4,7 +4,6 @@
 #include <clearfit/fit/blanching.hpp>
 
 #include <opencv2/imgproc.hpp>
-#include <tbb/parallel_for.h>
 
 #include <algorithm>
 #include <cmath>
@@ -81,18 +80,20 @@ bool uniform(const std::vector<float>& values) {
 }
 
 /// Chart uv of each sample at a gap (NaN where the baseline map is invalid), each gap landed once for the
-/// samples' rays (the coarse grid is searched up to three times) and the gaps a stage asks for at once landed
-/// in parallel. The samples' rays do not change (move_samples reads them elsewhere in the image, not other rays).
+/// samples' rays (the coarse grid is searched up to three times). One gap at a time: landing gaps in parallel
+/// (each an offset skin surface, its ray index and rays) made the run's peak memory 8-21 MB larger and vary
+/// from run to run (175-188 MB against 167 MB, LongCaptureCli). The samples' rays do not change (move_samples
+/// reads them elsewhere in the image, not other rays).
 class GapUv {
  public:
   GapUv(const BaselineRays& rays, const Samples& s) : rays_(rays), s_(s) {}
-  /// Lands the gaps not landed yet, in parallel (each is one offset skin surface and its rays).
+  /// Lands the gaps not landed yet (each is one offset skin surface and its rays; that surface's own casts run in parallel).
   void land(const std::vector<double>& gaps) {
     std::vector<double> todo;
     for (double g : gaps)
       if (!memo_.count(g) && std::find(todo.begin(), todo.end(), g) == todo.end()) todo.push_back(g);
     std::vector<std::vector<Vec2>> uv(todo.size());
-    tbb::parallel_for(std::size_t(0), todo.size(), [&](std::size_t k) { uv[k] = rays_.chart_uv(todo[k], s_.ray); });
+    for (std::size_t k = 0; k < todo.size(); ++k) uv[k] = rays_.chart_uv(todo[k], s_.ray);
     for (std::size_t k = 0; k < todo.size(); ++k) memo_.emplace(todo[k], std::move(uv[k]));
   }
   const std::vector<Vec2>& operator()(double gap) {
