@@ -335,13 +335,8 @@ const std::vector<float>& blue_green_ratio_table() {
 }  // namespace
 
 double glare_fraction(const cv::Mat& bgr, const cv::Rect& patch) {
-  const cv::Mat m = glare_pixels(bgr, patch);
-  return m.empty() ? 0.0 : static_cast<double>(cv::countNonZero(m)) / m.total();
-}
-
-cv::Mat glare_pixels(const cv::Mat& bgr, const cv::Rect& patch) {
   const cv::Rect r = patch & cv::Rect(0, 0, bgr.cols, bgr.rows);
-  if (r.area() == 0) return {};
+  if (r.area() == 0) return 0;
   const float* lut = srgb::to_linear_table8();
   const std::vector<float>& ratio_of = blue_green_ratio_table();
   // The medians (the value of rank n/2) from histograms, exactly: green is an increasing function
@@ -369,16 +364,15 @@ cv::Mat glare_pixels(const cv::Mat& bgr, const cv::Rect& patch) {
   const double c = ratio_of[pairs[i]], g = lut[green_code];
   for (const int k : pairs) pair_count[k] = 0;
   const double whiter = c + 0.5 * (1 - c);
-  cv::Mat mask(r.size(), CV_8U);
+  long long n = 0;
   for (int y = r.y; y < r.br().y; ++y) {
     const auto* row = bgr.ptr<cv::Vec3b>(y);
-    auto* out = mask.ptr<std::uint8_t>(y - r.y);
     for (int x = r.x; x < r.br().x; ++x) {
       const cv::Vec3b p = row[x];
-      out[x - r.x] = std::max({p[0], p[1], p[2]}) >= 250 || (ratio_of[p[0] * 256 + p[1]] >= whiter && lut[p[1]] >= 1.2 * g) ? 255 : 0;
+      n += std::max({p[0], p[1], p[2]}) >= 250 || (ratio_of[p[0] * 256 + p[1]] >= whiter && lut[p[1]] >= 1.2 * g);
     }
   }
-  return mask;
+  return static_cast<double>(n) / r.area();
 }
 
 std::vector<std::uint8_t> glare_texels(const GlareMask& glare, const InverseMap& inv, const Vec2& shift) {

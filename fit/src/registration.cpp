@@ -348,21 +348,11 @@ MotionRegistration::Regions MotionRegistration::read(const cv::Mat& bgr, const S
     const Vec2 centre(p.area.x + 0.5 * p.area.width, p.area.y + 0.5 * p.area.height), shift = expected.displacement(ds * centre) / ds;
     const cv::Point moved(static_cast<int>(std::lround(shift.x())), static_cast<int>(std::lround(shift.y())));
     const cv::Rect full_res(ds * (p.area.x + moved.x), ds * (p.area.y + moved.y), ds * p.area.width, ds * p.area.height);
-    // Glare where the template has its pixels (the reference's own glare is masked out of it: set_reference()).
-    cv::Mat glare = glare_pixels(bgr, full_res);
-    const double most = options_.max_glare_fraction * full_res.area();
-    if (!glare.empty() && cv::countNonZero(glare) > most && !p.weight.empty() && glare.size() == full_res.size()) {
-      cv::Mat counted;
-      cv::resize(p.weight, counted, full_res.size(), 0, 0, cv::INTER_NEAREST);
-      glare &= counted;
-    }
-    if (!glare.empty() && cv::countNonZero(glare) > most) {
+    if (glare_fraction(bgr, full_res) > options_.max_glare_fraction) {
       g.glare = true;
-      if (!p.weight.empty()) return;  // the reference keeps its region: its glare is masked instead
+      return;
     }
-    const bool glared = g.glare;
     g = filtered(bgr, box, cv::Point(ds * moved.x, ds * moved.y), skin_blur_[k]);
-    g.glare = glared;
     if (g.f.empty()) return;
     g.coef = g.f.clone();
     SplineSampler(options_.spline_order).coefficients(g.coef);
@@ -582,7 +572,7 @@ void MotionRegistration::set_reference(const cv::Mat& bgr) {
   Regions regions = read(bgr, none);
   std::vector<cv::Mat> warped(patches_.size());
   for (std::size_t k = 0; k < patches_.size(); ++k) {
-    if (regions[k].f.empty()) continue;
+    if (regions[k].glare || regions[k].f.empty()) continue;
     const cv::Rect a = patches_[k].area, r(a.x - kApron - regions[k].origin.x, a.y - kApron - regions[k].origin.y,
                                            a.width + 2 * kApron, a.height + 2 * kApron);
     if ((r & cv::Rect(0, 0, regions[k].f.cols, regions[k].f.rows)) != r) continue;
@@ -591,20 +581,7 @@ void MotionRegistration::set_reference(const cv::Mat& bgr) {
     const cv::Rect in(r.x + kApron, r.y + kApron, a.width, a.height);
     if (regions[k].skin.empty()) p.weight = cv::Mat(a.size(), CV_8U, cv::Scalar(255));
     else cv::erode(regions[k].skin(in), p.weight, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * kApron + 3, 2 * kApron + 3)));
-    if (regions[k].glare) {
-      // The glare this frame shows, with a margin for its blur and for the motion, is left out of the template.
-      const int ds = options_.downsample;
-      cv::Mat glare = glare_pixels(bgr, cv::Rect(ds * a.x, ds * a.y, ds * a.width, ds * a.height)), small;
-      if (glare.size() == cv::Size(ds * a.width, ds * a.height)) {
-        cv::resize(glare, small, a.size(), 0, 0, cv::INTER_AREA);
-        cv::dilate(small > 0, small, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(33, 33)));
-        p.weight.setTo(0, small);
-      } else {
-        p.weight.setTo(0);
-      }
-      regions[k].glare = false;
-    }
-    if (cv::countNonZero(p.weight) < a.area() / 4) continue;  // mostly off the skin (or glare)
+    if (cv::countNonZero(p.weight) < a.area() / 4) continue;  // mostly off the skin
     warped[k] = regions[k].f(r) - cv::mean(regions[k].f(r))[0];
   }
   accumulate(warped);

@@ -76,8 +76,6 @@ GlareMask detect_glare(const PhaseAverage& baseline, const PhaseAverage& worn, c
 /// patch's median to 1) and brighter (green 1.2× the median) than the skin. A highlight about
 /// as bright as the skin or brighter is found; weak glare is left to detect_glare.
 double glare_fraction(const cv::Mat& bgr, const cv::Rect& patch);
-/// Those pixels (CV_8U, 255 where glare, the size of `patch` clipped to the image; empty when nothing is left).
-cv::Mat glare_pixels(const cv::Mat& bgr, const cv::Rect& patch);
 
 /// Per chart texel: 1 where the texel's camera pixel (plus `shift_px`) lies in the mask.
 std::vector<std::uint8_t> glare_texels(const GlareMask& glare, const InverseMap& inverse, const Vec2& shift_px);

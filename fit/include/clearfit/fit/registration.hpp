@@ -10,9 +10,8 @@
 // (normalised convolution), so the fall-off, slow fields and the part's edge drop out.
 //
 // Where. A grid × grid set of patches spread over the region of interest (on the skin);
-// glare in the reference frame (glare_pixels) is left out of its patch's template with a
-// margin, and a patch whose current frame shows glare where its template has pixels
-// (more than max_glare_fraction of it) is left out of that frame. The reference is the average of the first
+// a patch whose reference or current frame shows glare (glare_fraction) is
+// left out of that frame. The reference is the average of the first
 // `reference_frames` frames, each moved back by its measured motion; when it is closed,
 // each of them is measured again against the average of the others (its own noise in
 // the average would hold it where it was put), and the average is made again with those
@@ -60,7 +59,7 @@ struct RegistrationOptions {
   /// Frames averaged into the reference (each registered against the average so far and
   /// moved back before it is added): the reference's noise falls as 1/√n.
   int reference_frames = 8;
-  double max_glare_fraction = 0.01; ///< a patch with more glare pixels than this where its template has pixels is left out
+  double max_glare_fraction = 0.01; ///< a patch with more glare pixels than this (glare_fraction) is left out
   double tukey_c = 4.685;           ///< Tukey biweight constant, in units of the residuals' robust spread (at least their standard errors)
   double min_sigma_px = 0.02;       ///< floor of a patch's standard error, px (added in quadrature: noise-free patches agree to about this)
   /// A fitted turn and scale smaller than this many of their standard errors are dropped (translation only).
