@@ -191,7 +191,6 @@ inline Floor measure_floor(const Scene& scene, const RayGrid& rays, const Rigid3
     const auto t2 = Clock::now();
     fl.cpu_ms = std::min(fl.cpu_ms, process_cpu_ms() - c0);
     scene.index->intersect(first, hit1);
-    const auto t3 = Clock::now();
     scene.index->intersect(second_recast, hit2);
     const auto t4 = Clock::now();
     auto ms = [](auto a, auto b) { return std::chrono::duration<double, std::milli>(b - a).count(); };

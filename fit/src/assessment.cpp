@@ -291,7 +291,7 @@ void read_phases(const AssessmentScene& scene, const CaptureSources& captures, b
     // a registration reference per geometry (capture.hpp).
     if (own_geometry) ro.max_references = 4;
     ro.max_sums_mb = o.max_sums_mb;
-    CaptureSums sums = read(captures.both, "capture", &p.worn_series, progress_of("reading the capture capture"));
+    CaptureSums sums = read(captures.both, "capture", &p.worn_series, progress_of("reading the capture"));
     add_times(sums);
     const PhaseSplit split = split_phases(sums, o.window_frames);
     if (sums.sums_dropped) {  // a long capture: read again for its two windows only (bounded memory)
