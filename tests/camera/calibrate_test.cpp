@@ -90,6 +90,27 @@ std::string run(const std::string& command) {
   return out;
 }
 
+// mrcal-calibrate-cameras in `dir` with `args`. The tool's solve is not
+// repeatable run to run on an ill-conditioned set (the wide lens's corners.vnl
+// gave a board warp of 1e-6 in one run and 6e-4 in the next), and about one
+// run in four on that set stops in its valid-intrinsics region with "Cannot
+// compute the uncertainty: factorization computation failed" (twice in a row
+// once). A run that stops there is retried, up to five runs in all.
+void run_mrcal_tool(const fs::path& dir, const std::string& args) {
+  const std::string command =
+      "cd " + dir.string() + " && /usr/bin/python3 /usr/bin/mrcal-calibrate-cameras " + args + " 'frame*.png'";
+  for (int attempt = 1;; ++attempt) {
+    try {
+      run(command);
+      return;
+    } catch (const std::runtime_error& e) {
+      if (attempt == 5 || std::string(e.what()).find("factorization computation failed") == std::string::npos) throw;
+      std::printf("mrcal-calibrate-cameras stopped in its uncertainty factorization (run %d); running it again\n",
+                  attempt);
+    }
+  }
+}
+
 // One calibration of the shared data set (30 views, sigma 0.3 px, seed 7),
 // ours and mrcal's tool's, computed once.
 struct Shared {
@@ -116,10 +137,9 @@ const Shared& shared() {
     write_corners_levels_vnl(s->views, s->vnl);
     const fs::path outdir = scratch() / "mrcal";
     fs::create_directories(outdir);
-    run("cd " + scratch().string() +
-        " && /usr/bin/python3 /usr/bin/mrcal-calibrate-cameras --corners-cache corners.vnl --lensmodel "
-        "LENSMODEL_OPENCV8 --focal 1000 --imagersize 1280 960 --object-spacing 30 --object-width-n 10 "
-        "--object-height-n 10 --outdir mrcal 'frame*.png'");
+    run_mrcal_tool(scratch(),
+                   "--corners-cache corners.vnl --lensmodel LENSMODEL_OPENCV8 --focal 1000 --imagersize 1280 960 "
+                   "--object-spacing 30 --object-width-n 10 --object-height-n 10 --outdir mrcal");
     s->mrcal_path = outdir / "camera-0.cameramodel";
     return s;
   }();
@@ -317,10 +337,8 @@ TEST(Calibrate, WideLensExtrapolatesBeyondTheViews) {
   const fs::path dir = scratch() / "wide";
   fs::create_directories(dir / "mrcal");
   write_corners_levels_vnl(views, dir / "corners.vnl");
-  run("cd " + dir.string() +
-      " && /usr/bin/python3 /usr/bin/mrcal-calibrate-cameras --corners-cache corners.vnl --lensmodel "
-      "LENSMODEL_OPENCV8 --focal 650 --imagersize 1280 960 --object-spacing 30 --object-width-n 10 "
-      "--object-height-n 10 --outdir mrcal 'frame*.png'");
+  run_mrcal_tool(dir, "--corners-cache corners.vnl --lensmodel LENSMODEL_OPENCV8 --focal 650 --imagersize 1280 960 "
+                     "--object-spacing 30 --object-width-n 10 --object-height-n 10 --outdir mrcal");
   const CameraModel tool = read_cameramodel(dir / "mrcal" / "camera-0.cameramodel");
   const WideLensError e = wide_lens_error(truth, ours.model, views), s = wide_lens_error(truth, sized.model, views),
                       t = wide_lens_error(truth, tool, views);
