@@ -35,3 +35,13 @@ for c in [1.0, 0.5]:
   dog = nz + (b*b+sm*sm)/c**2*(nz - gaussian_filter(nz, c/t))
   lap1 = nz - 0.5*(b*b+sm*sm)*laplace(gaussian_filter(nz, 1.0/t))/t**2
   print(f'c {c}: mean bias {np.mean(pe[place]-p[place]):+.3f}, peak {pe.max():.3f}; noise gain DoG {dog.std():.3f}, 1 mm Laplacian {lap1.std():.3f}')
+print('--- the assessment\'s deblur since 2026-11-29 (deblur_terms): two Gaussians, y + 2B/c2 (y - G_c y) - B/(2c2) (y - G_{c*sqrt2} y), B = b2+s2')
+for c in [1.0, 0.75]:
+  y = gaussian_filter(f(gaussian_filter(p, b/t)), sm/t)
+  B = b*b+sm*sm
+  terms = [(2*B/c**2, c), (-B/(2*c**2), c*2**0.5)]
+  yc = y + sum(a*(y - gaussian_filter(y, cc/t)) for a, cc in terms)
+  pe = finv(yc)
+  nz = gaussian_filter(rng.normal(size=y.shape), sm/t); nz /= nz.std()
+  dog2 = nz + sum(a*(nz - gaussian_filter(nz, cc/t)) for a, cc in terms)
+  print(f'c {c}: mean bias {np.mean(pe[place]-p[place]):+.3f}, peak {pe.max():.3f}; noise gain {dog2.std():.3f}')

@@ -499,9 +499,10 @@ void mark_near_outline(const RefractionMap& map, const InverseMap& inv, const Ve
 }
 
 /// Stage 4: the blanching signal on the chart (glare texels excluded), the chart's raster and the
-/// signal's σ with the pose's; returns the options the signal was computed with (the later stages
-/// read its spatial noise and transmittance ratio).
-BlanchingOptions chart_signal(const AssessmentScene& scene, bool own_geometry, const Phases& p, const BaselineView& b,
+/// signal's σ with the pose's (`calibrated`: the σ of the sharpened signal the pressure is read from, its noise
+/// times the deblur's gain); returns the options the signal was computed with (the later stages read its
+/// spatial noise and transmittance ratio).
+BlanchingOptions chart_signal(const AssessmentScene& scene, bool own_geometry, bool calibrated, const Phases& p, const BaselineView& b,
                               const AssessmentOptions& o, Assessment& a) {
   const InverseMap& inv = *scene.inverse;
   a.glare_texels = glare_texels(a.glare, inv, p.worn_avg.residual_shift_px);
@@ -538,7 +539,8 @@ BlanchingOptions chart_signal(const AssessmentScene& scene, bool own_geometry, c
   }
   a.intrinsics_sigma_mm = intrinsics.position_mm;
   a.blur_effect = blur_effect(a.signal, bo);
-  a.signal_sigma = signal_sigma(a.signal, a.position_sigma_mm, intrinsics.signal, a.blur_effect);
+  const double noise_gain = calibrated ? deblur_noise_gain(bo, a.signal.y.grid.texel_mm) : 1.0;
+  a.signal_sigma = signal_sigma(a.signal, a.position_sigma_mm, intrinsics.signal, a.blur_effect, noise_gain);
   return bo;
 }
 
@@ -688,7 +690,7 @@ Assessment assess_captures(const AssessmentScene& scene, const CaptureSources& c
   register_baseline(scene, own_geometry, p, o, a, b);
   check_captures(scene, p, b, o, a);
   if (o.progress) o.progress("blanching signal", 0, 0);
-  const BlanchingOptions bo = chart_signal(scene, own_geometry, p, b, o, a);
+  const BlanchingOptions bo = chart_signal(scene, own_geometry, calibration.has_value(), p, b, o, a);
   pressure_and_hotspots(scene, calibration, bo.spatial_noise || bo.local_spatial_noise, o, a);
   timeline(scene, calibration, own_geometry, p, b, bo, o, a);
   coverage_and_vertices(scene, bo.smoothing_mm, a);

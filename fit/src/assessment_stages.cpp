@@ -148,6 +148,26 @@ ChartField position_sigma_total(const ChartField& pose, const ChartField& intrin
   return out;
 }
 
+std::vector<DeblurTerm> deblur_terms(const BlanchingOptions& o) {
+  const double b2 = o.skin_blur_mm * o.skin_blur_mm + o.smoothing_mm * o.smoothing_mm, c = o.curvature_smoothing_mm;
+  return {{2 * b2 / (c * c), c}, {-0.5 * b2 / (c * c), std::sqrt(2.0) * c}};
+}
+
+double deblur_noise_gain(const BlanchingOptions& o, double texel_mm) {
+  const std::vector<DeblurTerm> terms = deblur_terms(o);
+  const double n2 = std::pow(std::max(o.smoothing_mm, 0.5 * texel_mm), 2);
+  // H(k) = A − Σ a_i·exp(−k²c_i²/2) with A = 1 + Σ a_i, over noise whose spectrum is exp(−k²n²): each product of two
+  // Gaussians integrates to n² / (n² + (c_i² + c_j²)/2) of the noise's variance (1 for the constant).
+  double a = 1;
+  for (const DeblurTerm& t : terms) a += t.weight;
+  double g2 = a * a;
+  for (const DeblurTerm& t : terms) {
+    g2 -= 2 * a * t.weight * n2 / (n2 + 0.5 * t.scale_mm * t.scale_mm);
+    for (const DeblurTerm& u : terms) g2 += t.weight * u.weight * n2 / (n2 + 0.5 * (t.scale_mm * t.scale_mm + u.scale_mm * u.scale_mm));
+  }
+  return std::sqrt(std::max(g2, 1.0));
+}
+
 ChartField blur_effect(const BlanchingSignal& signal, const BlanchingOptions& o) {
   const ChartGrid& g = signal.y.grid;
   ChartField out{g, std::vector<float>(g.size(), 0.f)};
@@ -156,18 +176,21 @@ ChartField blur_effect(const BlanchingSignal& signal, const BlanchingOptions& o)
   for (int j = 0; j < g.height; ++j)
     for (int i = 0; i < g.width; ++i)
       if (const float y = signal.y.value[g.index(i, j)]; std::isfinite(y)) v.at<float>(j, i) = y, w.at<float>(j, i) = 1;
-  const double s = o.curvature_smoothing_mm / g.texel_mm;
-  cv::GaussianBlur(v, v, cv::Size(), s, s, cv::BORDER_CONSTANT);
-  cv::GaussianBlur(w, w, cv::Size(), s, s, cv::BORDER_CONSTANT);
-  const double half_b2 = 0.5 * (o.skin_blur_mm * o.skin_blur_mm + o.smoothing_mm * o.smoothing_mm) / (g.texel_mm * g.texel_mm);
-  auto ys = [&](int i, int j) { return v.at<float>(j, i) / w.at<float>(j, i); };
+  cv::Mat effect(g.height, g.width, CV_32F, cv::Scalar(0));
+  for (const DeblurTerm& t : deblur_terms(o)) {  // −a·(y − G_c∗y), G_c∗y normalised over the seen texels
+    cv::Mat gv, gw;
+    const double s = t.scale_mm / g.texel_mm;
+    cv::GaussianBlur(v, gv, cv::Size(), s, s, cv::BORDER_CONSTANT);
+    cv::GaussianBlur(w, gw, cv::Size(), s, s, cv::BORDER_CONSTANT);
+    for (int j = 0; j < g.height; ++j)
+      for (int i = 0; i < g.width; ++i)
+        if (gw.at<float>(j, i) > 0) effect.at<float>(j, i) -= static_cast<float>(t.weight * (v.at<float>(j, i) - gv.at<float>(j, i) / gw.at<float>(j, i)));
+  }
   for (int j = 1; j + 1 < g.height; ++j)
     for (int i = 1; i + 1 < g.width; ++i) {
       bool seen = true;
       for (auto [di, dj] : {std::pair{0, 0}, {1, 0}, {-1, 0}, {0, 1}, {0, -1}}) seen = seen && std::isfinite(signal.y.value[g.index(i + di, j + dj)]);
-      if (!seen) continue;
-      const double lap = ys(i + 1, j) + ys(i - 1, j) + ys(i, j + 1) + ys(i, j - 1) - 4 * ys(i, j);
-      out.value[g.index(i, j)] = static_cast<float>(half_b2 * lap);
+      if (seen) out.value[g.index(i, j)] = effect.at<float>(j, i);
     }
   return out;
 }
@@ -180,10 +203,10 @@ ChartField sharpened_signal(const ChartField& y, const ChartField& blur) {
 }
 
 ChartField signal_sigma(const BlanchingSignal& signal, const ChartField& position_mm, const ChartField& intrinsics_signal,
-                        const ChartField& blur) {
+                        const ChartField& blur, double noise_gain) {
   ChartField out = signal.sigma_y;
   for (std::size_t k = 0; k < out.value.size(); ++k)
-    if (std::isfinite(out.value[k])) out.value[k] = std::hypot(out.value[k], blur.value[k]);
+    if (std::isfinite(out.value[k])) out.value[k] = static_cast<float>(std::hypot(noise_gain * out.value[k], blur.value[k]));
   for (std::size_t k = 0; k < intrinsics_signal.value.size(); ++k)
     if (std::isfinite(out.value[k]) && std::isfinite(intrinsics_signal.value[k])) out.value[k] = std::hypot(out.value[k], intrinsics_signal.value[k]);
   if (position_mm.value.empty()) return out;
@@ -271,18 +294,21 @@ std::vector<std::uint8_t> calibrated_pressure(const PressureCalibration& calibra
   // The pressure of the signal with the blur's first-order effect undone (blur_effect).
   const ChartField sharpened = sharpened_signal(a.signal.y, a.blur_effect);
   calibration.invert(sharpened.value, a.signal_sigma.value, a.pressure.value, a.pressure_sigma.value, a.pressure_status);
+  // Detection is read on y itself, the estimate on the sharpened signal: the deblur raises the noise (and a capture's
+  // spatial error) by its gain, and gated on the sharpened signal the band's oblique ends on PhotometricCli's
+  // wristband (smoothing 0.5 mm) became 2 false places at 4.3 kPa. A detected place's tail is read by the hysteresis.
   // Lossy captures and phases with their own geometry: the calibration's detection limit is its presses'
   // noise, not the capture's; a texel not significant against this capture's own noise (spatial term
   // included) is below detection. The gate is signal_threshold_sigmas (5), not the calibration's own
   // detection_sigmas (3): at 3 σ the texture left in a held or lossy capture's signal became false places
   // at 4.3 kPa (21 on AssessCli's wristband, 2 on LossyCli's), while the σ coverage gained 0.6 points.
-  if (spatial_noise)
-    for (std::size_t k = 0; k < g.size(); ++k)
-      if (a.pressure_status[k] == static_cast<std::uint8_t>(PressureStatus::ok) &&
-          !(a.signal.y.value[k] >= o.signal_threshold_sigmas * a.signal.sigma_y.value[k])) {
-        a.pressure_status[k] = static_cast<std::uint8_t>(PressureStatus::below_detection);
-        a.pressure_sigma.value[k] = kNaN;  // 0 kPa below detection is a bound, not an estimate
-      }
+  const double gate = calibration.detection_signal();
+  for (std::size_t k = 0; k < g.size(); ++k)
+    if (a.pressure_status[k] == static_cast<std::uint8_t>(PressureStatus::ok) &&
+        !(a.signal.y.value[k] >= gate && (!spatial_noise || a.signal.y.value[k] >= o.signal_threshold_sigmas * a.signal.sigma_y.value[k]))) {
+      a.pressure_status[k] = static_cast<std::uint8_t>(PressureStatus::below_detection);
+      a.pressure_sigma.value[k] = kNaN;  // 0 kPa below detection is a bound, not an estimate
+    }
   extend_detection(calibration, sharpened, o.hysteresis_sigmas, o.min_hotspot_area_mm2, a);
   a.pressure_shared_sigma = shared_pressure_sigma(calibration, a);
   // Below detection is a measurement (less than the detection limit), shown and counted as 0 kPa;

@@ -286,7 +286,7 @@ void BlanchingOptions::validate() const {
   check(std::isfinite(smoothing_mm) && smoothing_mm >= 0, "smoothing_mm", smoothing_mm, ">= 0 mm");
   SkinBlur{skin_blur_mm}.validate("assess.skin_blur_mm");
   check(curvature_smoothing_mm > 0 && curvature_smoothing_mm < 20, "curvature_smoothing_mm", curvature_smoothing_mm,
-        "in (0, 20) mm (the curvature of the blur's first-order term is taken on the signal smoothed this much more)");
+        "in (0, 20) mm (the scale over which the deblur reads the blur's first-order term)");
   check(std::isfinite(reference_radius_mm) && reference_radius_mm > 0, "reference_radius_mm", reference_radius_mm, "a positive length in mm");
   check(!local_spatial_noise || (local_noise_window_mm > 0 && std::isfinite(local_noise_window_mm)), "local_noise_window_mm",
         local_noise_window_mm, "> 0 mm");

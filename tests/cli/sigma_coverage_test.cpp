@@ -213,8 +213,9 @@ double gamma_cdf(int n, double x) {
 /// within the central 98 % of its law, which the counts alone cannot do with 8 places: on seeds 1–4, with the truth
 /// over all its texels and the outline fit settling on one edge of the slab (0.17 px off), 5 of 8 held and Σ d²/σ²
 /// was 32.3 (P 1e-7); over the seen texels 7 of 8 and 11.2 (P 0.13); with the fit's stretch 8 of 8 and 7.3. The mean
-/// (the 10 kPa place's: the 14 kPa place is saturated, its mean has no σ) reads 0.2–0.4 kPa low (README: the
-/// curvature's smoothing and a blur the assessment does not model); its σ counts the blur's term as one error over the
+/// (the 10 kPa place's: the 14 kPa place is saturated, its mean has no σ) read 0.2–0.4 kPa low with the deblur's
+/// smoothed Laplacian, 0.0–0.3 kPa with its difference of Gaussians (README, kPa ± σ: noise-free, half of what is left
+/// is the logistic's curvature, the skin's blur acting before it, half the deblur's own shortfall); its σ counts the blur's term as one error over the
 /// place (shared_pressure_sigma), not as noise averaged down.
 void check_place_figures(const std::map<std::string, Figure>& places) {
   for (const auto& [what, f] : places) {

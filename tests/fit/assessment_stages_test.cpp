@@ -1,7 +1,7 @@
 // The assessment's stages (fit/assessment_stages.hpp) on hand-made inputs, against closed forms: the
 // checks that refuse or warn about captures at their thresholds, the pose's and the camera model's
 // position σ, the projection uncertainty over the seen contact surface and its warning, the blur's
-// first-order effect on a paraboloid, the signal's σ in quadrature, the centres' position term and the
+// first-order effect on a paraboloid and a Gaussian place, the deblur's noise gain, the signal's σ in quadrature, the centres' position term and the
 // pressure through a linear calibration with its detection gate.
 #include <clearfit/error.hpp>
 #include <clearfit/fit/assessment_stages.hpp>
@@ -12,6 +12,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <random>
 
 namespace clearfit {
 namespace {
@@ -277,6 +278,46 @@ TEST(AssessmentStages, BlurEffectOfAParaboloidIsHalfTheBlurSquaredTimesItsLaplac
   EXPECT_TRUE(std::isnan(sharp.value[g.index(60, 60)]));
 }
 
+TEST(AssessmentStages, DeblurOfAGaussianPlaceKeepsMostOfItsFirstOrderTermWithABoundedNoiseGain) {
+  // A Gaussian place of σ0 = 1.5 mm (the SigmaCoverage scene's 10 kPa place): each Gaussian of the difference keeps
+  // its peak's fraction σ0² / (σ0² + c²), so the deblur adds β²·A·(2/(σ0² + c²) − 1/(σ0² + 2c²)) at the peak, 86 % of
+  // the first order's β²·A/σ0² at c = 1 mm (a Laplacian of y smoothed 1 mm: 48 %).
+  const double texel = 0.05, s0 = 1.5, amp = 0.03, c = 1.0;
+  const ChartGrid g = grid(301, 301, texel);
+  BlanchingSignal s;
+  s.y = constant(g, 0.f);
+  for (int j = 0; j < g.height; ++j)
+    for (int i = 0; i < g.width; ++i) {
+      const double u = (i - 150) * texel, v = (j - 150) * texel;
+      s.y.value[g.index(i, j)] = static_cast<float>(amp * std::exp(-(u * u + v * v) / (2 * s0 * s0)));
+    }
+  BlanchingOptions o;
+  o.skin_blur_mm = 0.3, o.smoothing_mm = 0.25, o.curvature_smoothing_mm = c;
+  const double b2 = 0.3 * 0.3 + 0.25 * 0.25;
+  const double expected = -b2 * amp * (2 / (s0 * s0 + c * c) - 1 / (s0 * s0 + 2 * c * c));
+  EXPECT_NEAR(blur_effect(s, o).value[g.index(150, 150)], expected, 0.01 * std::abs(expected));
+  EXPECT_NEAR(expected / (-b2 * amp / (s0 * s0)), 0.855, 0.005);
+  // The noise gain: white noise smoothed by smoothing_mm, through the deblur; its σ over the interior against the closed form.
+  std::mt19937 rng(7);
+  std::normal_distribution<float> normal(0.f, 1.f);
+  BlanchingSignal n;
+  n.y = constant(g, 0.f);
+  for (float& x : n.y.value) x = normal(rng);
+  n.y = smooth_field(n.y, o.smoothing_mm);
+  const ChartField e = blur_effect(n, o);
+  double s_in = 0, s_out = 0;
+  long long count = 0;
+  for (int j = 70; j < 231; ++j)
+    for (int i = 70; i < 231; ++i) {
+      const auto k = g.index(i, j);
+      s_in += n.y.value[k] * n.y.value[k], s_out += std::pow(n.y.value[k] - e.value[k], 2), ++count;
+    }
+  const double gain = deblur_noise_gain(o, texel);
+  EXPECT_NEAR(gain, 1.20, 0.01);
+  EXPECT_NEAR(std::sqrt(s_out / s_in), gain, 0.03);
+  EXPECT_LT(gain, 1 + 1.5 * b2 / (c * c));  // the gain on white noise, its bound
+}
+
 TEST(AssessmentStages, SignalSigmaIsNoiseBlurIntrinsicsAndGradientTimesPositionInQuadrature) {
   // y = a·u + b·v with a constant blur effect: the sharpened signal has the same gradient |(a, b)|.
   const double a = 0.02, b = 0.015, noise = 0.001, blur = 0.0007, intr = 0.0004, pos = 0.05;
@@ -289,6 +330,7 @@ TEST(AssessmentStages, SignalSigmaIsNoiseBlurIntrinsicsAndGradientTimesPositionI
   const ChartField blur_f = constant(g, static_cast<float>(blur)), intr_f = constant(g, static_cast<float>(intr));
   const ChartField with = signal_sigma(s, constant(g, static_cast<float>(pos)), intr_f, blur_f);
   const ChartField without = signal_sigma(s, ChartField{}, intr_f, blur_f);
+  const ChartField gained = signal_sigma(s, ChartField{}, intr_f, blur_f, 1.2);  // the deblur's noise gain: on the noise only
   const double grad = std::hypot(a, b);
   for (int j = 0; j < g.height; ++j)
     for (int i = 0; i < g.width; ++i) {
@@ -298,6 +340,7 @@ TEST(AssessmentStages, SignalSigmaIsNoiseBlurIntrinsicsAndGradientTimesPositionI
         continue;
       }
       ASSERT_NEAR(without.value[k], std::sqrt(noise * noise + blur * blur + intr * intr), 1e-8);
+      ASSERT_NEAR(gained.value[k], std::sqrt(1.44 * noise * noise + blur * blur + intr * intr), 1e-8);
       ASSERT_NEAR(with.value[k], std::sqrt(noise * noise + blur * blur + intr * intr + grad * grad * pos * pos), 1e-6) << i << "," << j;
     }
 }

@@ -186,10 +186,11 @@ struct Assessment {
   ChartField intrinsics_sigma_mm;
   /// The projection uncertainty over the seen contact surface (assessment_stages.hpp); texels 0 without it.
   ProjectionSigmaOnContact projection_on_contact;
-  /// 1-σ of the signal per texel: the noise (signal.sigma_y) and the position term in quadrature; inverted
-  /// into pressure_sigma, and the σ of the hotspots without a calibration.
+  /// 1-σ of the signal per texel: the noise (signal.sigma_y; with a calibration times the deblur's noise gain,
+  /// deblur_noise_gain), the blur's term and the position term in quadrature; inverted into pressure_sigma, and
+  /// the σ of the hotspots without a calibration.
   ChartField signal_sigma;
-  ChartField blur_effect;    ///< ½·(skin blur² + smoothing²)·∇²y per texel: undone in the pressure, part of signal_sigma
+  ChartField blur_effect;    ///< y − y', about ½·(skin blur² + smoothing²)·∇²y per texel (blur_effect): undone in the pressure, part of signal_sigma
   std::vector<float> vertex_pressure, vertex_signal;  ///< per mesh vertex, NaN where unseen / off the contact
   std::vector<float> vertex_pressure_sigma;  ///< 1-σ of vertex_pressure (kPa); NaN where pressure_sigma is undefined around it
   cv::Mat skin_camera;                       ///< last worn frame (BGR8), as the camera saw it, glare mask outlined in magenta

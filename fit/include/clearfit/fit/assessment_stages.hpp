@@ -65,22 +65,37 @@ void add_position_to_centres(std::vector<Hotspot>& hotspots, const std::vector<i
 
 // ---- The signal's blur and σ (stage 4) ----
 
-/// Per texel, the blur's first-order effect on the signal: ½·(blur² + smoothing²)·∇²y
-/// (BlanchingOptions::skin_blur_mm, smoothing_mm). The signal reads the contact pressure blurred by the
-/// skin and by the feature's smoothing, which lowers a peak and raises a foot by this much. ∇²y by the
-/// 5-point stencil on y smoothed by a further curvature_smoothing_mm (normalised over the seen texels), so
-/// that the noise's Laplacian adds little; 0 where a neighbour is unseen and on the grid's border.
+/// The deblur's difference of Gaussians, y' = y + Σ weight·(y − G_scale∗y): two terms, weights 2β²/c² and −β²/(2c²) at
+/// scales c and √2·c (β² = skin_blur² + smoothing², c = BlanchingOptions::curvature_smoothing_mm). For features wider
+/// than c it is y − ½β²∇²y (the blur's first-order effect undone: Σ weight·scale² = β²) with no k⁴ term left (Σ
+/// weight·scale⁴ = 0), where a Laplacian of y smoothed by c reads the curvature of a wide place low (a 1.5 mm place's
+/// peak by half at c = 1 mm); for finer detail (noise) its gain stays under 1 + 1.5β²/c².
+struct DeblurTerm {
+  double weight, scale_mm;
+};
+std::vector<DeblurTerm> deblur_terms(const BlanchingOptions& o);
+
+/// The deblur's gain on the signal's per-texel noise (σ of y' over σ of y), for noise correlated as the signal's
+/// smoothing (a Gaussian of max(smoothing_mm, half a texel)): closed form over the terms' Gaussians; at least 1.
+/// 1.20 at 0.3 mm skin blur, 0.25 mm smoothing and c = 1 mm.
+double deblur_noise_gain(const BlanchingOptions& o, double texel_mm);
+
+/// Per texel, the blur's effect on the signal that the deblur undoes: y − y' (deblur_terms; about
+/// ½·(blur² + smoothing²)·∇²y, BlanchingOptions::skin_blur_mm, smoothing_mm). The signal reads the contact pressure
+/// blurred by the skin and by the feature's smoothing, which lowers a peak and raises a foot by this much. The
+/// Gaussians are normalised over the seen texels; 0 where a 4-neighbour is unseen and on the grid's border.
 ChartField blur_effect(const BlanchingSignal& signal, const BlanchingOptions& o);
 
 /// The signal the pressure is read from: y with the blur's first-order effect (blur_effect) undone.
 ChartField sharpened_signal(const ChartField& y, const ChartField& blur);
 
-/// The signal's σ: its noise (signal.sigma_y), the blur's first-order effect (the pressure undoes it, and
+/// The signal's σ: its noise (signal.sigma_y, times `noise_gain`: the deblur's, deblur_noise_gain, where the sharpened signal
+/// is read; 1 where y is), the blur's first-order effect (the pressure undoes it, and
 /// its size stands for what the first order misses), the intrinsics' term (IntrinsicsTerm::signal; may be
 /// empty) and, where the pose is uncertain, |∇y'|·σ_pos, in quadrature, with y' the sharpened signal (∇ by
 /// central differences on the chart, one-sided beside unseen texels; position_mm may be empty).
 ChartField signal_sigma(const BlanchingSignal& signal, const ChartField& position_mm, const ChartField& intrinsics_signal,
-                        const ChartField& blur);
+                        const ChartField& blur, double noise_gain = 1.0);
 
 // ---- Pressure (stage 5) ----
 

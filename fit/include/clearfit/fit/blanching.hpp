@@ -32,9 +32,12 @@ struct BlanchingOptions {
   /// signal reads the contact pressure blurred by both, lower at a peak and higher at a foot by
   /// ½·(blur² + smoothing²)·∇²y. That resolution error is part of each texel's σ (assessment.cpp).
   double skin_blur_mm = SkinBlur{}.sigma_mm;
-  /// The curvature ∇²y of that term is taken on y smoothed by this much more (mm): the first order holds
-  /// for features wider than the blur, and a narrower Laplacian is mostly noise. Measured: 0.2 / 0.5 / 1.0 mm
-  /// gave SigmaCoverage 86.7 / 91.6 / 91.9 % and the study plate's sensitivity at 5.5 kPa 73 / 87 / 99 %.
+  /// The scale (mm) over which the deblur reads that term: y' = y + Σ a·(y − G∗y), a difference of Gaussians at this
+  /// scale and √2 times it (assessment_stages.hpp, deblur_terms): y − ½·(blur² + smoothing²)·∇²y for features wider
+  /// than it, a bounded gain on finer detail (mostly noise). Until 2026-11-29 ∇²y on y smoothed this much more: it read
+  /// a 1.5 mm place's curvature about half, and that place's mean 0.27 kPa low (the difference of Gaussians: 0.14).
+  /// Measured with it: 0.75 / 1.0 mm gave the study plate's sensitivity at 5.5 kPa 89.4 / 96.6 % (the Laplacian
+  /// smoothed 0.2 / 0.5 / 1.0 mm: 73 / 87 / 99-100 %).
   double curvature_smoothing_mm = 1.0;  ///< scene key assess.curvature_smoothing_mm
   std::optional<Vec2> reference_uv_mm;   ///< centre of a reference disk on the chart
   double reference_radius_mm = 2.0;      ///< its radius
