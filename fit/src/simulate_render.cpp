@@ -49,7 +49,45 @@ Pair sqrt2(Pair a) {
   return Pair{std::sqrt(a[0]), std::sqrt(a[1])};
 #endif
 }
+/// Four floats in one SIMD register (a pixel's R, G, B and an unused lane); the square root as four scalar ones.
+using Quad = float __attribute__((vector_size(16)));
+using QuadI = int __attribute__((vector_size(16)));
+Quad sqrt4(Quad a) {
+#if defined(__SSE2__)
+  return _mm_sqrt_ps(a);
+#else
+  return Quad{std::sqrt(a[0]), std::sqrt(a[1]), std::sqrt(a[2]), std::sqrt(a[3])};
+#endif
+}
 constexpr int kLutSize = 65536;
+
+/// A frame's colour terms per channel in lanes R, G, B (the fourth unused, 0): the camera's gain, the skin's e and
+/// the polynomial's c1..c3 (CaptureRenderer::render); and the full well (electrons).
+struct FrameColour {
+  Quad gain{}, e{}, c1{}, c2{}, c3{};
+  float full_well = 1;
+};
+
+/// A row's 8-bit BGR pixels `o` from its pixels' static terms (P: CaptureRenderer::Pixel), the glare (nullptr: none)
+/// and the noise rows per channel, through the sRGB table: per channel poly = q0 + c1·q1 + c2·q2 + c3·q3; with glare
+/// w the noise std √(σ² + gain·w / full well); lin = gain·(additive + w) + (p.gain·e)·poly + σ·noise. A pixel's three
+/// channels side by side in SIMD lanes, each lane the scalar formula's float operations in its order (the same IEEE
+/// results). (Four pixels side by side, transposed from their terms, measured no faster.)
+template <class P>
+void compose_row(const P* row, int width, const float* glare_row, const float* const noise[3], const std::uint8_t* lut,
+                 const FrameColour& f, std::uint8_t* o) {
+  for (int x = 0; x < width; ++x) {
+    const P& p = row[x];
+    const float w = glare_row ? glare_row[x] : 0.f;  // glare adds light and its shot noise
+    const Quad poly = p.q[0] + f.c1 * p.q[1] + f.c2 * p.q[2] + f.c3 * p.q[3];
+    Quad sigma = {p.sigma[0], p.sigma[1], p.sigma[2], 0.f};
+    if (w > 0) sigma = sqrt4(sigma * sigma + f.gain * w / f.full_well);
+    const Quad n = {noise[0][x], noise[1][x], noise[2][x], 0.f};
+    const Quad lin = f.gain * (p.additive + w) + p.gain * f.e * poly + sigma * n;
+    const QuadI idx = __builtin_convertvector(lin * float(kLutSize - 1) + 0.5f, QuadI);
+    for (int c = 0; c < 3; ++c) o[3 * x + 2 - c] = lut[std::clamp(idx[c], 0, kLutSize - 1)];  // BGR
+  }
+}
 constexpr std::size_t kNoisePool = std::size_t(1) << 22;
 }  // namespace
 
@@ -171,7 +209,7 @@ CaptureRenderer::CaptureRenderer(const RefractionMap& map, const ChartField& dri
       }
   pixels_.resize(static_cast<std::size_t>(width_) * height_);
   tbb::parallel_for(0, height_, [&](int y) {
-    for (int x = 0; x < width_; ++x) pixels_[static_cast<std::size_t>(y) * width_ + x] = static_pixel(x, y);
+    for (int x = 0; x < width_; ++x) static_pixel(x, y, pixels_[static_cast<std::size_t>(y) * width_ + x]);
   });
   for (const Pixel& p : pixels_) skin_pixels_ += p.q[0] > 0;
   setup_ms_ = ms_since(t0);
@@ -226,6 +264,74 @@ bool CaptureRenderer::read_taps(double sx, double sy, int& skin, SampleRead& out
   return true;
 }
 
+// A sample's bilinear texture read at its chart uv, added to the moments' sums Σ T·m·B^n.
+void CaptureRenderer::add_texture_sample(const SampleRead& r, double acc[4]) const {
+  const double fx = (r.u - tex_grid_.uv_origin.x()) / tex_grid_.texel_mm;
+  const double fy = (r.v - tex_grid_.uv_origin.y()) / tex_grid_.texel_mm;
+  const int i0 = std::clamp(static_cast<int>(std::floor(fx)), 0, tex_grid_.width - 2);
+  const int j0 = std::clamp(static_cast<int>(std::floor(fy)), 0, tex_grid_.height - 2);
+  const double u = std::clamp(fx - i0, 0.0, 1.0), v = std::clamp(fy - j0, 0.0, 1.0);
+  const std::size_t k00 = tex_grid_.index(i0, j0), k01 = k00 + tex_grid_.width;
+  const auto& t00 = tex_mb_[k00];
+  const auto& t10 = tex_mb_[k00 + 1];
+  const auto& t01 = tex_mb_[k01];
+  const auto& t11 = tex_mb_[k01 + 1];
+  const double m = (1 - v) * ((1 - u) * t00[0] + u * t10[0]) + v * ((1 - u) * t01[0] + u * t11[0]);
+  const double B = (1 - v) * ((1 - u) * t00[1] + u * t10[1]) + v * ((1 - u) * t01[1] + u * t11[1]);
+  const double tm = r.transmittance * m;
+  acc[0] += tm, acc[1] += tm * B, acc[2] += tm * B * B, acc[3] += tm * B * B * B;
+}
+
+// Two samples of a row of the pixel's samples, (sx0, sy) then (sx1, sy), when both have their four taps in a flagged
+// cell: read_taps' fast path and add_texture_sample's read side by side in SIMD lanes, each lane the scalar code's
+// operations in its order (the same IEEE results), added to the sums sample by sample. False (nothing added) otherwise.
+bool CaptureRenderer::add_cell_pair(double sx0, double sx1, double sy, double acc[4]) const {
+  const int y0 = static_cast<int>(std::floor(sy)), xa = static_cast<int>(std::floor(sx0)), xb = static_cast<int>(std::floor(sx1));
+  if (y0 < 0 || y0 + 1 >= height_ || xa < 0 || xb < 0 || xa + 1 >= width_ || xb + 1 >= width_) return false;
+  const Tap* row = taps_.data() + static_cast<std::size_t>(y0) * width_;
+  const Tap *a = row + xa, *b = row + xb;
+  if (!a->cell || !b->cell) return false;
+  const std::size_t w = width_;
+  const double ty = sy - y0;
+  const Pair tx = Pair{sx0, sx1} - Pair{double(xa), double(xb)};
+  const Pair w00 = (1 - tx) * (1 - ty), w10 = tx * (1 - ty), w01 = (1 - tx) * ty, w11 = tx * ty;
+  const Pair wsum = w00 + w10 + w01 + w11;  // about 1: both samples see skin
+  auto taps = [&](float Tap::*f) {
+    return w00 * Pair{a->*f, b->*f} + w10 * Pair{a[1].*f, b[1].*f} + w01 * Pair{a[w].*f, b[w].*f} + w11 * Pair{a[w + 1].*f, b[w + 1].*f};
+  };
+  Pair u = taps(&Tap::u), v = taps(&Tap::v), t = taps(&Tap::transmittance);
+  if (wsum[0] != 1 || wsum[1] != 1) u /= wsum, v /= wsum, t /= wsum;  // x / 1 is x
+  const Pair fx = (u - tex_grid_.uv_origin.x()) / tex_grid_.texel_mm, fy = (v - tex_grid_.uv_origin.y()) / tex_grid_.texel_mm;
+  std::size_t k[2];
+  Pair i0, j0;
+  for (int l = 0; l < 2; ++l) {
+    const int i = std::clamp(static_cast<int>(std::floor(fx[l])), 0, tex_grid_.width - 2);
+    const int j = std::clamp(static_cast<int>(std::floor(fy[l])), 0, tex_grid_.height - 2);
+    i0[l] = i, j0[l] = j, k[l] = tex_grid_.index(i, j);
+  }
+  {  // the texels the same sample reads a few pixels on (the map's chart step along its row), fetched ahead
+    constexpr double kAhead = 3;
+    const double px = fx[1] + kAhead * (double(a[1].u) - a->u) / tex_grid_.texel_mm, py = fy[1] + kAhead * (double(a[1].v) - a->v) / tex_grid_.texel_mm;
+    if (px >= 0 && py >= 0 && px < tex_grid_.width - 1 && py < tex_grid_.height - 1) {
+      const auto* ahead = &tex_mb_[tex_grid_.index(static_cast<int>(px), static_cast<int>(py))];
+      __builtin_prefetch(ahead), __builtin_prefetch(ahead + tex_grid_.width);
+    }
+  }
+  auto unit = [](Pair x) { return x < 0 ? Pair{0, 0} : Pair{1, 1} < x ? Pair{1, 1} : x; };  // std::clamp(x, 0, 1)
+  const Pair tu = unit(fx - i0), tv = unit(fy - j0);
+  const std::size_t tw = tex_grid_.width;
+  auto texels = [&](int c) {
+    const auto &a00 = tex_mb_[k[0]], &a10 = tex_mb_[k[0] + 1], &a01 = tex_mb_[k[0] + tw], &a11 = tex_mb_[k[0] + tw + 1];
+    const auto &b00 = tex_mb_[k[1]], &b10 = tex_mb_[k[1] + 1], &b01 = tex_mb_[k[1] + tw], &b11 = tex_mb_[k[1] + tw + 1];
+    return (1 - tv) * ((1 - tu) * Pair{a00[c], b00[c]} + tu * Pair{a10[c], b10[c]}) +
+           tv * ((1 - tu) * Pair{a01[c], b01[c]} + tu * Pair{a11[c], b11[c]});
+  };
+  const Pair m = texels(0), B = texels(1);
+  const Pair tm = t * m, tmB = tm * B, tmBB = tmB * B, tmBBB = tmBB * B;
+  for (int l = 0; l < 2; ++l) acc[0] += tm[l], acc[1] += tmB[l], acc[2] += tmBB[l], acc[3] += tmBBB[l];
+  return true;
+}
+
 // Moments Σ T·m·B^n / n² over the sub-pixel samples of the pixel centred at (px, py).
 int CaptureRenderer::moments(double px, double py, float q[4]) const {
   const int n = cam_.supersample;
@@ -234,50 +340,43 @@ int CaptureRenderer::moments(double px, double py, float q[4]) const {
   double acc[4] = {0, 0, 0, 0};
   int skin = 0;
   SampleRead r;
-  for (int b = 0; b < n; ++b)
+  for (int b = 0; b < n; ++b) {
+    const double sy = py + offset[b] - 0.5;
     for (int a = 0; a < n; ++a) {
-      if (!read_taps(px + offset[a] - 0.5, py + offset[b] - 0.5, skin, r)) continue;  // background sample
-      // Bilinear texture read.
-      const double fx = (r.u - tex_grid_.uv_origin.x()) / tex_grid_.texel_mm;
-      const double fy = (r.v - tex_grid_.uv_origin.y()) / tex_grid_.texel_mm;
-      const int i0 = std::clamp(static_cast<int>(std::floor(fx)), 0, tex_grid_.width - 2);
-      const int j0 = std::clamp(static_cast<int>(std::floor(fy)), 0, tex_grid_.height - 2);
-      const double u = std::clamp(fx - i0, 0.0, 1.0), v = std::clamp(fy - j0, 0.0, 1.0);
-      const std::size_t k00 = tex_grid_.index(i0, j0), k01 = k00 + tex_grid_.width;
-      const auto& t00 = tex_mb_[k00];
-      const auto& t10 = tex_mb_[k00 + 1];
-      const auto& t01 = tex_mb_[k01];
-      const auto& t11 = tex_mb_[k01 + 1];
-      const double m = (1 - v) * ((1 - u) * t00[0] + u * t10[0]) + v * ((1 - u) * t01[0] + u * t11[0]);
-      const double B = (1 - v) * ((1 - u) * t00[1] + u * t10[1]) + v * ((1 - u) * t01[1] + u * t11[1]);
-      const double tm = r.transmittance * m;
-      acc[0] += tm, acc[1] += tm * B, acc[2] += tm * B * B, acc[3] += tm * B * B * B;
+      if (a + 1 < n && add_cell_pair(px + offset[a] - 0.5, px + offset[a + 1] - 0.5, sy, acc)) {
+        skin += 2, ++a;
+        continue;
+      }
+      if (read_taps(px + offset[a] - 0.5, sy, skin, r)) add_texture_sample(r, acc);  // else a background sample
     }
-  for (int k = 0; k < 4; ++k) q[k] = static_cast<float>(acc[k] / (n * n));
+  }
+  for (int k = 0; k < 4; ++k) q[k] = static_cast<float>(divide_by_samples(acc[k]));
   return skin;
 }
 
-CaptureRenderer::Pixel CaptureRenderer::static_pixel(double px, double py, bool with_skin) const {
-  Pixel p{};
+void CaptureRenderer::static_pixel(double px, double py, Pixel& p, bool with_skin) const {
+  p = Pixel{};
   // Skin fraction of the samples (transmittance aside), for the background share.
-  const int n = cam_.supersample;
   const int skin = with_skin ? moments(px, py, p.q) : 0;
   const double cx = 0.5 * (width_ - 1), cy = 0.5 * (height_ - 1);
-  const double r2 = ((px - cx) * (px - cx) + (py - cy) * (py - cy)) / (cx * cx + cy * cy + 1e-12);
-  const double illum = cam_.exposure * (1 - cam_.falloff * r2);
   const double sxh = cam_.specular_center.x() * width_, syh = cam_.specular_center.y() * height_, sig = cam_.specular_sigma * width_;
-  // The highlight's exponent; beyond 60 (a factor 1e-26) it adds nothing an 8-bit pixel shows.
-  const double spec_exponent = ((px - sxh) * (px - sxh) + (py - syh) * (py - syh)) / (2 * sig * sig);
+  // The fall-off's r² and the highlight's exponent, their two divisions in one.
+  const Pair ratio = Pair{(px - cx) * (px - cx) + (py - cy) * (py - cy), (px - sxh) * (px - sxh) + (py - syh) * (py - syh)} /
+                     Pair{cx * cx + cy * cy + 1e-12, 2 * sig * sig};
+  const double r2 = ratio[0], spec_exponent = ratio[1];
+  const double illum = cam_.exposure * (1 - cam_.falloff * r2);
+  // Beyond an exponent of 60 (a factor 1e-26) the highlight adds nothing an 8-bit pixel shows.
   const double spec = cam_.specular_peak != 0 && spec_exponent < 60 ? cam_.specular_peak * std::exp(-spec_exponent) : 0.0;
   p.gain = static_cast<float>(illum);
-  p.additive = static_cast<float>(illum * cam_.background * (1 - double(skin) / (n * n)) + spec);
-  // No skin seen (q = 0): one level for the three channels, and one square root.
-  for (int c = 0; c < (p.q[0] == 0 ? 1 : 3); ++c) {
-    const double level = std::max(0.0, illum * skin_.tone.reflectance[c] * p.q[0] + p.additive);
-    p.sigma[c] = static_cast<float>(std::sqrt(level * cam_.full_well_e + cam_.read_noise_e * cam_.read_noise_e) / cam_.full_well_e);
-  }
-  if (p.q[0] == 0) p.sigma[1] = p.sigma[2] = p.sigma[0];
-  return p;
+  p.additive = static_cast<float>(illum * cam_.background * (1 - divide_by_samples(skin)) + spec);
+  // The noise's std per channel: √(level·full well + read noise²) / full well, the channels' square roots and
+  // divisions two at a time; no skin seen (q = 0): one level for the three channels.
+  const double fw = cam_.full_well_e, read2 = cam_.read_noise_e * cam_.read_noise_e;
+  double electrons[3];
+  for (int c = 0; c < 3; ++c)
+    electrons[c] = std::max(0.0, illum * skin_.tone.reflectance[p.q[0] == 0 ? 0 : c] * p.q[0] + p.additive) * fw + read2;
+  const Pair s01 = sqrt2(Pair{electrons[0], electrons[1]}) / fw, s2 = sqrt2(Pair{electrons[2], read2}) / fw;
+  p.sigma[0] = static_cast<float>(s01[0]), p.sigma[1] = static_cast<float>(s01[1]), p.sigma[2] = static_cast<float>(s2[0]);
 }
 
 void CaptureRenderer::background_pixels(int x0, int x1, double uy, double shift_x, double ca, double sa, Pixel* out) const {
@@ -333,14 +432,15 @@ cv::Mat CaptureRenderer::render(double t_s, double h, const FrameMotion& motion,
   const double s = h * (1 + skin_.pulse_amplitude * g);
   const double flick = 1 + cam_.flicker_amplitude * std::sin(kTwoPi * cam_.flicker_hz * t_s);
   // The camera's gain per channel: the flicker, or the photometric schedule's (simulate_photometric.hpp).
-  float gain[3], e[3], c1[3], c2[3], c3[3];
-  for (int c = 0; c < 3; ++c) gain[c] = static_cast<float>(light ? light->gain[c] : flick);  // c: R, G, B
+  FrameColour f;
+  for (int c = 0; c < 3; ++c) f.gain[c] = static_cast<float>(light ? light->gain[c] : flick);  // c: R, G, B
   const cv::Mat* glare = light && light->glare && !light->glare->empty() ? light->glare : nullptr;
   for (int c = 0; c < 3; ++c) {
     const double k = skin_.absorption[c], ks = k * s;
-    e[c] = static_cast<float>(gain[c] * skin_.tone.reflectance[c] * std::exp(-k * skin_.pulse_amplitude * g));
-    c1[c] = static_cast<float>(ks), c2[c] = static_cast<float>(ks * ks / 2), c3[c] = static_cast<float>(ks * ks * ks / 6);
+    f.e[c] = static_cast<float>(f.gain[c] * skin_.tone.reflectance[c] * std::exp(-k * skin_.pulse_amplitude * g));
+    f.c1[c] = static_cast<float>(ks), f.c2[c] = static_cast<float>(ks * ks / 2), f.c3[c] = static_cast<float>(ks * ks * ks / 6);
   }
+  f.full_well = static_cast<float>(cam_.full_well_e);
   const bool moved = motion.moved();
   // Rows and columns a turned pixel can reach beyond its shift.
   const double turn = std::abs(std::sin(motion.angle_rad)) * 0.5 * std::max(width_, height_);
@@ -362,7 +462,7 @@ cv::Mat CaptureRenderer::render(double t_s, double h, const FrameMotion& motion,
         background_pixels(0, skin_from, uy, shift.x(), ca, sa, moved_row.data());
         for (int x = skin_from; x < skin_to; ++x) {
           const double ux = x - cx0 - shift.x();
-          moved_row[x] = static_pixel(cx0 + ca * ux + sa * uy, cy0 - sa * ux + ca * uy);
+          static_pixel(cx0 + ca * ux + sa * uy, cy0 - sa * ux + ca * uy, moved_row[x]);
         }
         background_pixels(skin_to, width_, uy, shift.x(), ca, sa, moved_row.data() + skin_to);
       }
@@ -371,18 +471,7 @@ cv::Mat CaptureRenderer::render(double t_s, double h, const FrameMotion& motion,
       const float* noise[3];
       for (int c = 0; c < 3; ++c)
         noise[c] = noise_pool_.data() + splitmix(fseed + 3 * static_cast<std::uint64_t>(y) + c) % (noise_pool_.size() - width_);
-      const float* glare_row = glare ? glare->ptr<float>(y) : nullptr;
-      for (int x = 0; x < width_; ++x) {
-        const Pixel& p = row[x];
-        const float w = glare_row ? glare_row[x] : 0.f;  // glare adds light and its shot noise
-        for (int c = 0; c < 3; ++c) {
-          const float poly = p.q[0] + c1[c] * p.q[1] + c2[c] * p.q[2] + c3[c] * p.q[3];
-          const float sigma = w > 0 ? std::sqrt(p.sigma[c] * p.sigma[c] + gain[c] * w / static_cast<float>(cam_.full_well_e)) : p.sigma[c];
-          const float lin = gain[c] * (p.additive + w) + p.gain * e[c] * poly + sigma * noise[c][x];
-          const int idx = std::clamp(static_cast<int>(lin * (kLutSize - 1) + 0.5f), 0, kLutSize - 1);
-          o[3 * x + 2 - c] = srgb_lut_[idx];  // BGR
-        }
-      }
+      compose_row(row, width_, glare ? glare->ptr<float>(y) : nullptr, noise, srgb_lut_.data(), f, o);
     }
   });
   return out;

@@ -255,9 +255,9 @@ class CaptureRenderer {
   /// The moments of the pixel centred at (x, y) of the still view; returns how many of its
   /// samples fall on skin (their taps' weight on valid pixels at least one half).
   int moments(double x, double y, float q[4]) const;
-  /// The pixel whose centre lies at (px, py) of the still view (a moved frame's pixel, mapped
-  /// back); skin = false: a pixel known to see no skin (no sampling).
-  Pixel static_pixel(double px, double py, bool skin = true) const;
+  /// Into `out`: the pixel whose centre lies at (px, py) of the still view (a moved frame's pixel,
+  /// mapped back); skin = false: a pixel known to see no skin (no sampling).
+  void static_pixel(double px, double py, Pixel& out, bool skin = true) const;
   /// static_pixel(q, false) of the moved frame's row pixels x0..x1 − 1 (row offset uy from the centre less the shift,
   /// the shift's x, the turn's cos and sin) into out[0 .. x1 − x0).
   void background_pixels(int x0, int x1, double uy, double shift_x, double ca, double sa, Pixel* out) const;
@@ -280,6 +280,13 @@ class CaptureRenderer {
     double u, v, transmittance;
   };
   bool read_taps(double sx, double sy, int& skin, SampleRead& out) const;
+  void add_texture_sample(const SampleRead& r, double acc[4]) const;
+  /// x / n² for n × n samples per pixel: a product by 1/n² when n² is a power of two (the same result).
+  double divide_by_samples(double x) const {
+    const int n2 = cam_.supersample * cam_.supersample;
+    return (n2 & (n2 - 1)) == 0 ? x * (1.0 / n2) : x / n2;
+  }
+  bool add_cell_pair(double sx0, double sx1, double sy, double acc[4]) const;
   std::vector<Tap> taps_;
   std::vector<Pixel> pixels_;
   std::vector<std::pair<int, int>> row_span_;  ///< per image row: first and last valid map pixel (1, 0 if none)
