@@ -397,11 +397,12 @@ CaptureSums read_capture(const std::filesystem::path& source, const CaptureReadO
       const Similarity start = sums.motion.empty() ? motion : sums.motion.back();
       registration.run([&motion, &patches_used, registration_of, &frame, start, building] {
         const RegistrationResult r = building ? registration_of->add_to_reference(frame, start) : registration_of->measure(frame, start);
-        // Every patch left out for glare: the frame cannot say how it moved; it keeps the
-        // previous frame's motion, and the glare check refuses a capture that is mostly glare.
+        // Every patch left out for glare, or skin without texture: the frame cannot say how it moved; it keeps
+        // the previous frame's motion (the glare check refuses a capture that is mostly glare, and a skin
+        // without texture leaves nothing to place the phases by either).
         const bool all_glare = !r.found && !r.glare.empty() &&
                                std::all_of(r.glare.begin(), r.glare.end(), [](std::uint8_t g) { return g != 0; });
-        motion = all_glare ? start : r.motion;
+        motion = all_glare || (!r.found && r.no_texture) ? start : r.motion;
         patches_used = r.patches_used;
       });
     }

@@ -13,6 +13,7 @@
 #include <cmath>
 #include <memory>
 #include <numbers>
+#include <tuple>
 
 #include "../support/slab_view.hpp"
 
@@ -109,7 +110,9 @@ double worst_error(const SkinView& v, MotionRegistration& reg, int count, Frame 
 
 TEST(Registration, StrongBlanchingInEveryPatchIsNotMotion) {
   const SkinView v;
-  for (const auto& [tone, texture_seed] : {std::pair<std::string, std::uint32_t>{"light", 7}, {"dark", 8}}) {
+  // Measured: at most 0.041 px on light skin, 0.092 px on dark (the bar of 0.05 px is met on light
+  // skin only: dark skin's texture is closer to the noise, and its glare leaves 5 of the 9 patches).
+  for (const auto& [tone, texture_seed, bound] : {std::tuple<std::string, std::uint32_t, double>{"light", 7, 0.06}, {"dark", 8, 0.12}}) {
     const SkinParameters skin = strong_skin(tone, texture_seed);
     const MotionRegistration probe(v.size(), v.roi, {}, v.seen);
     // One press in each patch in turn, then presses in all of them at once.
@@ -130,8 +133,7 @@ TEST(Registration, StrongBlanchingInEveryPatchIsNotMotion) {
           v, reg, frames,
           [&](int f) { return r->render(f / 30.0, f < reg.options().reference_frames ? 0.0 : 1.0, Vec2::Zero(), f); },
           [](int) { return std::pair(Vec2(Vec2::Zero()), 0.0); });
-      // Measured: at most 0.134 px (the bar of 0.05 px is not met yet).
-      EXPECT_LE(w, 0.15) << tone << ", press " << k;
+      EXPECT_LE(w, bound) << tone << ", press " << k;
       worst = std::max(worst, w);
     }
     std::printf("%s skin (texture seed %u), strong blanching in each of %zu patches and in all: motion read at most %.4f px\n",
@@ -150,8 +152,9 @@ TEST(Registration, RecoversSimulatedDriftTremorAndRotation) {
     const char* name;
     double drift, tremor, rotation_deg, bound;
   };
-  // Measured: 0.17, 0.18 and 0.16 px (the bar of 0.05 px is not met yet).
-  for (const Case& c : {Case{"drift", 3.0, 0, 0, 0.2}, Case{"tremor", 0, 0.6, 0, 0.2}, Case{"rotation", 0, 0, 0.5, 0.2}}) {
+  // Measured: 0.037, 0.034 and 0.091 px (the turn's own uncertainty at the roi's corners: the bar
+  // of 0.05 px is not met for the rotation yet).
+  for (const Case& c : {Case{"drift", 3.0, 0, 0, 0.06}, Case{"tremor", 0, 0.6, 0, 0.06}, Case{"rotation", 0, 0, 0.5, 0.12}}) {
     auto truth = [&](int k) {
       const double t = k / 30.0;
       const Vec2 shift = c.drift * t * Vec2(0.8, 0.6) + c.tremor * (std::sin(2 * std::numbers::pi * 9 * t + 1) - std::sin(1.0)) * Vec2(0.6, -0.8);
@@ -201,7 +204,7 @@ TEST(Registration, APatchWithMovingGlareIsLeftOut) {
   std::printf("moving glare in patch %zu: left out in %d of %d frames; motion error at most %.4f px\n", glared, left_out,
               static_cast<int>(results.size()), worst);
   EXPECT_EQ(left_out, static_cast<int>(results.size()));
-  EXPECT_LE(worst, 0.4);  // measured 0.38 px: the blob and the simulator's highlight leave 3–5 of the 9 patches
+  EXPECT_LE(worst, 0.08);  // measured 0.043 px (the blob and the simulator's highlight leave 3–5 of the 9 patches)
 }
 
 TEST(Registration, RefusesBadOptions) {

@@ -12,20 +12,28 @@
 // Where. A grid × grid set of patches spread over the region of interest (on the skin);
 // a patch whose reference or current frame shows glare (glare_fraction) is
 // left out of that frame. The reference is the average of the first
-// `reference_frames` frames, each moved back by its measured motion.
+// `reference_frames` frames, each moved back by its measured motion; when it is closed,
+// each of them is measured again against the average of the others (its own noise in
+// the average would hold it where it was put), and the average is made again with those
+// motions taken relative to the first frame's (so the motions stay the first frame's).
 //
 // How each patch is found. Gauss–Newton on the zero-mean, gain-normalised difference
-// between the template and the frame sampled (exact bicubic) where the current motion
-// puts it, turn and scale included; the Jacobian is the mean of both gradients.
+// between the template and the frame sampled (prefiltered B-spline, spline_sampler.hpp) where
+// the current motion puts it, turn and scale included. The Jacobian is the gradient of the
+// template with its noise filtered out (a Wiener filter from the template's own spectrum and
+// the averaged frames' spread): the raw template's gradient is mostly noise along the skin's
+// ridges (measured on dark skin: three quarters of Σ ty², reading patches 3–5× their
+// Cramér–Rao bound). Each patch's covariance follows from its residual.
 //
 // How they combine. A similarity transform of the image (translation,
-// rotation, scale about the roi's centre) is fitted to the patch translations
-// by iteratively reweighted least squares with Tukey's biweight on residuals
-// scaled by their robust spread: a patch that blanching, glare or a sliding
+// rotation, scale about the roi's centre) is fitted to the patch translations,
+// each weighted by its information (inverse covariance, shared with the patches it
+// overlaps), by iteratively reweighted least squares with Tukey's biweight on the
+// residuals' Mahalanobis norms: a patch that blanching, glare or a sliding
 // fold disturbs more than the others is rejected. A turn and scale within
-// `turn_significance` standard errors, or with fewer than six patches kept, are
-// dropped (translation only: their reweighted mean). When the turn or scale
-// changed the patches' sampling, they are measured again with it.
+// `turn_significance` standard errors (their covariance from the patches'), or with fewer
+// than six patches kept, are dropped (translation only: the weighted mean). When the turn or
+// scale changed the patches' sampling, they are measured again with it.
 #include <clearfit/geometry/mesh.hpp>
 #include <opencv2/core.hpp>
 
@@ -46,12 +54,27 @@ struct RegistrationOptions {
   double smooth_sigma_px = 0;       ///< Gaussian against noise, px at the registered resolution (0: none)
   double highpass_sigma_px = 16.0;  ///< Gaussian subtracted (fall-off, slow fields), px at the registered resolution
   int iterations = 30;              ///< Gauss–Newton iterations per patch at most
+  /// The Jacobian keeps frequencies up to this, cycles per registered px (radial): texture finer than two
+  /// pixels folds back below it and moves the other way (fingerprint ridges at 0.62 cycles/px are seen at
+  /// 0.38 and moving −1.6 times the skin: the wristband at quarter scale read 1.35 times the motion, reversed).
+  double max_frequency = 0.3;
+  /// B-spline order (3 or 5) of the frames' interpolation and of the gradients (spline_sampler.hpp).
+  int spline_order = 5;
   /// Frames averaged into the reference (each registered against the average so far and
   /// moved back before it is added): the reference's noise falls as 1/√n.
   int reference_frames = 8;
   double max_glare_fraction = 0.01; ///< a patch with more glare pixels than this (glare_fraction) is left out
-  double tukey_c = 4.685;           ///< Tukey biweight constant, in units of the residuals' robust σ
-  double min_sigma_px = 0.02;       ///< floor of that σ (noise-free patches agree to better than this)
+  double tukey_c = 4.685;           ///< Tukey biweight constant, in units of the residuals' robust spread (at least their standard errors)
+  double min_sigma_px = 0.02;       ///< floor of a patch's standard error, px (added in quadrature: noise-free patches agree to about this)
+  /// A patch whose standard error (either axis) exceeds this, px, is left out of the frame: it has no texture to be
+  /// registered by (measured: 0.6–18 px on textureless skin, where its noise alone pulled it; at most 0.1 px on the
+  /// textured test scenes, dark skin and strong blanching included).
+  double max_sigma_px = 0.25;
+  /// A frame whose patches are all left out, against a reference that never had one registered, is skin without
+  /// texture (its motion kept: RegistrationResult::no_texture) when the first frame's patches hold, as their median,
+  /// less texture than this: their power above the noise over the noise's, at frequencies up to max_frequency
+  /// (measured: textureless skin −0.2 to 1.8, its camera highlight the most; light skin 1.4–3.5). Otherwise it is lost.
+  double min_texture = 1.0;
   /// A fitted turn and scale smaller than this many of their standard errors are dropped (translation only).
   double turn_significance = 3.0;
   void validate() const;            ///< throws std::invalid_argument naming the field
@@ -80,6 +103,10 @@ struct RegistrationResult {
   std::vector<Vec2> patch_shift;     ///< per patch (NaN when left out): its translation
   std::vector<std::uint8_t> inlier;  ///< per patch: kept by the robust fit
   std::vector<std::uint8_t> glare;   ///< per patch: left out for glare
+  /// No patch could be registered, in this frame nor in any since the reference was set, and the first frame's
+  /// patches hold little texture (RegistrationOptions::min_texture): skin without texture to follow, which is not a
+  /// motion beyond recognition (the caller keeps the frame where the previous one was).
+  bool no_texture = false;
 };
 
 /// The reference's filtered patches; measures later frames against it. Shared by
@@ -127,16 +154,21 @@ class MotionRegistration {
   static constexpr int kSearchMargin = 8;  ///< room around the moved template for the correction and the interpolation, registration px
   struct Patch {
     cv::Rect area;                  ///< the template, registration px
-    cv::Mat sum;                    ///< sum of the frames averaged, with the apron (CV_32F)
+    cv::Mat sum, sq;                ///< sum of the frames averaged and of their squares, with the apron (CV_32F)
     int count = 0;                  ///< frames in `sum`
     cv::Mat t, tx, ty;              ///< zero-mean average and its gradients (area size), 0 off the skin
+    cv::Mat jx, jy;                 ///< the gradients of the average with its noise filtered out (wiener()): the Jacobian
     cv::Mat weight;                 ///< CV_8U (area size): the template's pixels that count (on the skin)
-    double h[3] = {0, 0, 0};        ///< Hessian Σ tx², Σ tx·ty, Σ ty²
+    double h[4] = {0, 0, 0, 0};     ///< Σ jx·tx, Σ jx·ty, Σ jy·tx, Σ jy·ty
+    double m[3] = {0, 0, 0};        ///< Σ jx², Σ jx·jy, Σ jy²
+    double tt = 0, pixels = 0;      ///< Σ t², and the pixels that count (weight)
+    double texture = 0;             ///< the first frame's texture against its noise (RegistrationOptions::min_texture)
     bool usable = false;
   };
   /// One frame's filtered region around each patch (registration px, origin in the same).
   struct Region {
     cv::Mat f;
+    cv::Mat coef;                   ///< f's spline coefficients (SplineSampler)
     cv::Mat skin;                   ///< CV_8U: the pixels of `f` that see the skin (empty: all)
     cv::Point origin;
     bool glare = false;
@@ -152,6 +184,7 @@ class MotionRegistration {
     cv::Mat skin;                   ///< CV_32F, region size: the seen mask moved by `shift`
     cv::Mat mask_div, low_div;      ///< CV_32F, crop size: max(smoothed mask, 1e-3) and max(its blur, 1e-3)
     cv::Mat on_skin;                ///< CV_8U, crop size: smoothed mask > 0.99
+    cv::Mat off_skin;               ///< CV_8U, crop size: smoothed mask 0
   };
   /// `cache` when it holds these region, shift and crop, else `cache` refilled with them.
   const SkinBlur& skin_blur(const cv::Rect& region, cv::Point shift, const cv::Rect& crop, SkinBlur& cache) const;
@@ -163,23 +196,41 @@ class MotionRegistration {
   Region filtered(const cv::Mat& bgr, const cv::Rect& area, cv::Point shift, SkinBlur& cache) const;
   /// Each patch's region of `bgr` where `expected` puts it, with a margin.
   Regions read(const cv::Mat& bgr, const Similarity& expected) const;
-  /// The motion of the frame whose regions these are; with `warped`, each patch's frame moved
-  /// back onto its template (with the apron; empty when the patch was not kept).
-  RegistrationResult solve(const Regions& regions, const Similarity& start, std::vector<cv::Mat>* warped) const;
+  /// The motion of the frame whose regions these are; with `whole`, that motion with its turn and
+  /// scale even where they are not significant (what a frame averaged is moved back by).
+  RegistrationResult solve(const Regions& regions, const Similarity& start, Similarity* whole = nullptr) const;
+  /// Each kept patch's region moved back by `motion` onto its template (with the apron), zero-mean; empty where not kept.
+  std::vector<cv::Mat> warp_back(const Regions& regions, const Similarity& motion, const std::vector<std::uint8_t>& keep) const;
+  /// Sampling positions (region px, `origin` the region's) of patch k's template plus `apron` under motion `s`.
+  void base_maps(std::size_t k, cv::Point origin, const Similarity& s, int apron, cv::Mat& bx, cv::Mat& by) const;
+  /// No turn or scale worth a hundredth of a pixel at the patch's corners: its samples are one grid moved.
+  bool uniform(std::size_t k, const Similarity& m) const;
   /// Adds the frame (moved back: `warped`) to the averages and refreshes the templates.
   void accumulate(const std::vector<cv::Mat>& warped);
+  /// The patch's template, its gradients and Jacobian from its sums.
+  void refresh(Patch& p) const;
   cv::Size image_;
   cv::Rect roi_;
   RegistrationOptions options_;
   std::vector<cv::Rect> rects_;
   std::vector<Patch> patches_;
-  cv::Mat seen_;                    ///< CV_8U, image size: the skin (eroded); empty: all
+  /// The pixels of the reference frame that the seen mask has and that look like skin: those far darker than
+  /// the skin the mask sees are left out (the not-worn capture, filmed through its own geometry, sees the
+  /// background where the worn one's map sees skin; its edge in a template pulled the patch to the integer
+  /// shifts the mask is moved by).
+  void restrict_to_skin(const cv::Mat& bgr);
+  cv::Mat seen_map_;                ///< CV_8U, image size: the skin the map sees (eroded); empty: all
+  cv::Mat seen_;                    ///< CV_8U, image size: seen_map_ less what the reference frame shows is not skin
   int frames_averaged_ = 0;
   bool open_ = false;
   std::vector<Regions> kept_;       ///< the averaged frames' regions, until close_reference()
+  std::vector<std::vector<cv::Mat>> kept_warped_;  ///< what each averaged frame added to each patch's sum
   std::vector<Similarity> kept_motion_;
   std::vector<int> kept_call_;      ///< each kept frame's place among the add_to_reference() calls
   int calls_ = 0;
+  /// Some frame had a patch registered since the reference was set (RegistrationResult::no_texture). Written
+  /// by solve(): one registration is measured from one thread at a time.
+  mutable bool textured_ = false;
   int border_ = 0;                  ///< filter support, registration px
   /// Per patch: the skin terms last used (filtered()). A cache written by read(), so one registration
   /// is measured from one thread at a time (as read_capture does).

@@ -1,0 +1,138 @@
+// B-spline interpolation with its gradient (see spline_sampler.hpp).
+#include "spline_sampler.hpp"
+
+#include <opencv2/imgproc.hpp>
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+#include <vector>
+
+namespace clearfit {
+
+namespace {
+
+/// Poles of the prefilter: the roots inside the unit circle of the sampled B-spline's z-transform
+/// (cubic: z² + 4z + 1; quintic: z⁴ + 26z³ + 66z² + 26z + 1).
+std::vector<double> poles(int order) {
+  if (order == 3) return {std::sqrt(3.0) - 2};
+  return {-0.43057534709997379, -0.043096288203264653};
+}
+
+/// One pole's causal and anticausal recursion along `n` values `c` spaced `stride` apart, with its
+/// gain (1 − z)(1 − 1/z) and mirror boundaries (Unser 1999, box 2): the causal start sums the mirrored
+/// sequence until the pole's powers fall below 1e-7; the anticausal start is the closed form for a
+/// mirrored end. A single value is its own coefficient.
+void recurse(float* c, int n, std::ptrdiff_t stride, double z) {
+  if (n < 2) return;
+  const double gain = (1 - z) * (1 - 1 / z);
+  for (int k = 0; k < n; ++k) c[k * stride] = static_cast<float>(gain * c[k * stride]);
+  const int horizon = std::min(n, static_cast<int>(std::ceil(std::log(1e-7) / std::log(std::abs(z)))));
+  double sum = c[0], zk = z;
+  for (int k = 1; k < horizon; ++k) sum += zk * c[k * stride], zk *= z;
+  c[0] = static_cast<float>(sum);
+  for (int k = 1; k < n; ++k) c[k * stride] = static_cast<float>(c[k * stride] + z * c[(k - 1) * stride]);
+  const std::ptrdiff_t last = (n - 1) * stride;
+  c[last] = static_cast<float>(z / (z * z - 1) * (c[last] + z * c[last - stride]));
+  for (int k = n - 2; k >= 0; --k) c[k * stride] = static_cast<float>(z * (c[(k + 1) * stride] - c[k * stride]));
+}
+
+/// (x)₊ to the power p.
+inline float pos_pow(float x, int p) {
+  if (x <= 0) return 0;
+  float r = x;
+  for (int i = 1; i < p; ++i) r *= x;
+  return r;
+}
+
+}  // namespace
+
+SplineSampler::SplineSampler(int order) : order_(order) {
+  if (order != 3 && order != 5) throw std::invalid_argument("SplineSampler: the order must be 3 or 5");
+}
+
+void SplineSampler::coefficients(cv::Mat& m) const {
+  CV_Assert(m.type() == CV_32F && m.isContinuous());
+  float* d = m.ptr<float>();
+  for (double z : poles(order_)) {
+    for (int y = 0; y < m.rows; ++y) recurse(d + static_cast<std::ptrdiff_t>(y) * m.cols, m.cols, 1, z);
+    for (int x = 0; x < m.cols; ++x) recurse(d + x, m.rows, m.cols, z);
+  }
+}
+
+void SplineSampler::weights(float t, float* w, float* dw) const {
+  // Tap j sits at floor(x) − before() + j, at distance u = t + before() − j from x.
+  for (int j = 0; j <= order_; ++j) {
+    const float u = t + static_cast<float>(before() - j), a = std::abs(u), s = u < 0 ? -1.f : 1.f;
+    if (order_ == 3) {
+      w[j] = (pos_pow(2 - a, 3) - 4 * pos_pow(1 - a, 3)) / 6;
+      dw[j] = -s * (pos_pow(2 - a, 2) - 4 * pos_pow(1 - a, 2)) / 2;
+    } else {
+      w[j] = (pos_pow(3 - a, 5) - 6 * pos_pow(2 - a, 5) + 15 * pos_pow(1 - a, 5)) / 120;
+      dw[j] = -s * (pos_pow(3 - a, 4) - 6 * pos_pow(2 - a, 4) + 15 * pos_pow(1 - a, 4)) / 24;
+    }
+  }
+}
+
+bool SplineSampler::sample(const cv::Mat& coef, const cv::Mat& bx, const cv::Mat& by, double dx, double dy, bool uniform,
+                           cv::Mat& out, cv::Mat* gx, cv::Mat* gy) const {
+  const int taps = order_ + 1, b = before();
+  float wx[6], wy[6], dwx[6], dwy[6];
+  auto outside = [&](int x0, int y0, int w, int h) { return x0 - b < 0 || y0 - b < 0 || x0 + w - 1 + after() >= coef.cols || y0 + h - 1 + after() >= coef.rows; };
+  if (uniform) {
+    const double x = bx.at<float>(0, 0) + dx, y = by.at<float>(0, 0) + dy;
+    const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+    if (outside(x0, y0, bx.cols, bx.rows)) return false;
+    weights(static_cast<float>(x - x0), wx, dwx);
+    weights(static_cast<float>(y - y0), wy, dwy);
+    const cv::Mat src = coef(cv::Rect(x0 - b, y0 - b, bx.cols + taps - 1, bx.rows + taps - 1));
+    const cv::Rect in(0, 0, bx.cols, bx.rows);
+    auto filter = [&](float* kx, float* ky, cv::Mat& dst) {
+      cv::Mat f;
+      cv::sepFilter2D(src, f, CV_32F, cv::Mat(1, taps, CV_32F, kx), cv::Mat(taps, 1, CV_32F, ky), cv::Point(0, 0), 0, cv::BORDER_REPLICATE);
+      dst = f(in);
+    };
+    filter(wx, wy, out);
+    if (gx) filter(dwx, wy, *gx);
+    if (gy) filter(wx, dwy, *gy);
+    return true;
+  }
+  out.create(bx.size(), CV_32F);
+  if (gx) gx->create(bx.size(), CV_32F);
+  if (gy) gy->create(bx.size(), CV_32F);
+  for (int j = 0; j < bx.rows; ++j) {
+    const float *px = bx.ptr<float>(j), *py = by.ptr<float>(j);
+    float* o = out.ptr<float>(j);
+    float* ox = gx ? gx->ptr<float>(j) : nullptr;
+    float* oy = gy ? gy->ptr<float>(j) : nullptr;
+    for (int i = 0; i < bx.cols; ++i) {
+      const double x = px[i] + dx, y = py[i] + dy;
+      const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
+      if (outside(x0, y0, 1, 1)) return false;
+      weights(static_cast<float>(x - x0), wx, dwx);
+      weights(static_cast<float>(y - y0), wy, dwy);
+      float v = 0, vx = 0, vy = 0;
+      for (int r = 0; r < taps; ++r) {
+        const float* row = coef.ptr<float>(y0 - b + r) + (x0 - b);
+        float s = 0, sx = 0;
+        for (int a = 0; a < taps; ++a) s += wx[a] * row[a], sx += dwx[a] * row[a];
+        v += wy[r] * s, vx += wy[r] * sx, vy += dwy[r] * s;
+      }
+      o[i] = v;
+      if (ox) ox[i] = vx;
+      if (oy) oy[i] = vy;
+    }
+  }
+  return true;
+}
+
+void SplineSampler::gradient(const cv::Mat& coef, cv::Mat& gx, cv::Mat& gy) const {
+  const int taps = order_ + 1;
+  float w[6], dw[6];
+  weights(0, w, dw);
+  const cv::Point anchor(before(), before());
+  cv::sepFilter2D(coef, gx, CV_32F, cv::Mat(1, taps, CV_32F, dw), cv::Mat(taps, 1, CV_32F, w), anchor, 0, cv::BORDER_REFLECT_101);
+  cv::sepFilter2D(coef, gy, CV_32F, cv::Mat(1, taps, CV_32F, w), cv::Mat(taps, 1, CV_32F, dw), anchor, 0, cv::BORDER_REFLECT_101);
+}
+
+}  // namespace clearfit
