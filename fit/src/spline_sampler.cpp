@@ -60,18 +60,41 @@ void SplineSampler::coefficients(cv::Mat& m) const {
   }
 }
 
+namespace {
+/// x⁵ and x⁴, multiplied in the order pos_pow does.
+inline float p5(float x) { return (((x * x) * x) * x) * x; }
+inline float p4(float x) { return ((x * x) * x) * x; }
+}  // namespace
+
 void SplineSampler::weights(float t, float* w, float* dw) const {
   // Tap j sits at floor(x) − before() + j, at distance u = t + before() − j from x.
-  for (int j = 0; j <= order_; ++j) {
-    const float u = t + static_cast<float>(before() - j), a = std::abs(u), s = u < 0 ? -1.f : 1.f;
-    if (order_ == 3) {
+  if (order_ == 3) {
+    for (int j = 0; j <= 3; ++j) {
+      const float u = t + static_cast<float>(1 - j), a = std::abs(u), s = u < 0 ? -1.f : 1.f;
       w[j] = (pos_pow(2 - a, 3) - 4 * pos_pow(1 - a, 3)) / 6;
-      dw[j] = -s * (pos_pow(2 - a, 2) - 4 * pos_pow(1 - a, 2)) / 2;
-    } else {
-      w[j] = (pos_pow(3 - a, 5) - 6 * pos_pow(2 - a, 5) + 15 * pos_pow(1 - a, 5)) / 120;
-      dw[j] = -s * (pos_pow(3 - a, 4) - 6 * pos_pow(2 - a, 4) + 15 * pos_pow(1 - a, 4)) / 24;
+      if (dw) dw[j] = -s * (pos_pow(2 - a, 2) - 4 * pos_pow(1 - a, 2)) / 2;
     }
+    return;
   }
+  // For t in [0, 1) each tap's |u| lies in a known unit interval: the terms (k − |u|)₊ that vanish there are
+  // left out (a zero term adds nothing: the values are the general form's).
+  float a[6];
+  for (int j = 0; j < 6; ++j) a[j] = std::abs(t + static_cast<float>(2 - j));
+  const float t0 = 3 - a[0], t1 = 3 - a[1], u1 = 2 - a[1], t2 = 3 - a[2], u2 = 2 - a[2], v2 = 1 - a[2];
+  const float t3 = 3 - a[3], u3 = 2 - a[3], v3 = 1 - a[3], t4 = 3 - a[4], u4 = 2 - a[4], t5 = 3 - a[5];
+  w[0] = p5(t0) / 120;
+  w[1] = (p5(t1) - 6 * p5(u1)) / 120;
+  w[2] = (p5(t2) - 6 * p5(u2) + 15 * p5(v2)) / 120;
+  w[3] = (p5(t3) - 6 * p5(u3) + 15 * p5(v3)) / 120;
+  w[4] = (p5(t4) - 6 * p5(u4)) / 120;
+  w[5] = p5(t5) / 120;
+  if (!dw) return;
+  dw[0] = -(p4(t0)) / 24;
+  dw[1] = -(p4(t1) - 6 * p4(u1)) / 24;
+  dw[2] = -(p4(t2) - 6 * p4(u2) + 15 * p4(v2)) / 24;
+  dw[3] = (p4(t3) - 6 * p4(u3) + 15 * p4(v3)) / 24;
+  dw[4] = (p4(t4) - 6 * p4(u4)) / 24;
+  dw[5] = p4(t5) / 24;
 }
 
 bool SplineSampler::sample(const cv::Mat& coef, const cv::Mat& bx, const cv::Mat& by, double dx, double dy, bool uniform,
@@ -109,9 +132,20 @@ bool SplineSampler::sample(const cv::Mat& coef, const cv::Mat& bx, const cv::Mat
       const double x = px[i] + dx, y = py[i] + dy;
       const int x0 = static_cast<int>(std::floor(x)), y0 = static_cast<int>(std::floor(y));
       if (outside(x0, y0, 1, 1)) return false;
-      weights(static_cast<float>(x - x0), wx, dwx);
-      weights(static_cast<float>(y - y0), wy, dwy);
+      const bool value_only = !ox && !oy;
+      weights(static_cast<float>(x - x0), wx, value_only ? nullptr : dwx);
+      weights(static_cast<float>(y - y0), wy, value_only ? nullptr : dwy);
       float v = 0, vx = 0, vy = 0;
+      if (value_only) {  // the value alone (the fit's samples): the same sums without the gradient's
+        for (int r = 0; r < taps; ++r) {
+          const float* row = coef.ptr<float>(y0 - b + r) + (x0 - b);
+          float s = 0;
+          for (int a = 0; a < taps; ++a) s += wx[a] * row[a];
+          v += wy[r] * s;
+        }
+        o[i] = v;
+        continue;
+      }
       for (int r = 0; r < taps; ++r) {
         const float* row = coef.ptr<float>(y0 - b + r) + (x0 - b);
         float s = 0, sx = 0;

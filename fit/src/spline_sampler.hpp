@@ -33,7 +33,8 @@ class SplineSampler {
   void gradient(const cv::Mat& coef, cv::Mat& gx, cv::Mat& gy) const;
 
  private:
-  /// Weights of the order + 1 taps from floor(x) − before() for x's fraction t in [0, 1), and their derivatives.
+  /// Weights of the order + 1 taps from floor(x) − before() for x's fraction t in [0, 1), and their derivatives
+  /// unless `dw` is null.
   void weights(float t, float* w, float* dw) const;
   int order_;
 };
