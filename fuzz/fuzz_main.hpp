@@ -13,6 +13,7 @@
 #include <functional>
 #include <map>
 #include <string>
+#include <system_error>
 #include <unistd.h>
 
 namespace clearfit::fuzz {
@@ -21,9 +22,22 @@ using Reader = std::pair<std::string, std::function<void(const fs::path&)>>;  //
 const std::map<std::string, Reader>& readers();
 }  // namespace clearfit::fuzz
 
+namespace clearfit::fuzz {
+/// The file each input is written to, one per process, removed when the process exits normally (a crash keeps it).
+struct InputFile {
+  fs::path path;
+  ~InputFile() {
+    std::error_code ignored;
+    fs::remove(path, ignored);
+  }
+};
+}  // namespace clearfit::fuzz
+
 extern "C" int LLVMFuzzerTestOneInput(const std::uint8_t* data, std::size_t size) {
   static const auto& entry = clearfit::fuzz::readers().at(CLEARFIT_FUZZ_TARGET);
-  static const std::filesystem::path file = std::filesystem::temp_directory_path() / ("clearfit-fuzz-" + std::to_string(::getpid()) + entry.first);
+  static const clearfit::fuzz::InputFile input{std::filesystem::temp_directory_path() /
+                                               ("clearfit-fuzz-" + std::to_string(::getpid()) + entry.first)};
+  const std::filesystem::path& file = input.path;
   {
     std::ofstream out(file, std::ios::binary | std::ios::trunc);
     out.write(reinterpret_cast<const char*>(data), static_cast<std::streamsize>(size));

@@ -71,6 +71,16 @@ cv::Mat seen_pixels(const RefractionMap& map, const cv::Rect& roi) {
   return seen;
 }
 
+/// The pixels of `roi` the baseline's own rays leave from (CV_8U, 255): where its capture can see the skin.
+cv::Mat baseline_seen_pixels(const BaselineRays& rays, const cv::Rect& roi) {
+  cv::Mat seen(roi.size(), CV_8U, cv::Scalar(0));
+  for (std::uint32_t p : rays.pixels()) {
+    const int x = static_cast<int>(p % rays.width()) - roi.x, y = static_cast<int>(p / rays.width()) - roi.y;
+    if (x >= 0 && y >= 0 && x < roi.width && y < roi.height) seen.at<std::uint8_t>(y, x) = 255;
+  }
+  return seen;
+}
+
 /// The share of each pixel of `roi` that sees the skin (CV_32F; RefractionMap::seen_share).
 cv::Mat seen_shares(const RefractionMap& map, const cv::Rect& roi) {
   cv::Mat1f seen(roi.size(), 0.f);
@@ -260,6 +270,11 @@ void read_phases(const AssessmentScene& scene, const CaptureSources& captures, b
                  Assessment& a, Phases& p) {
   const RefractionMap& map = *scene.forward;
   CaptureReadOptions ro = capture_read_options(scene, own_geometry, o);
+  // With its own geometry the not-worn capture sees the skin through other pixels: its registration's patches go
+  // there (one video holding both phases: where either phase sees it).
+  cv::Mat base_seen;
+  if (own_geometry && ro.roi.area() > 0) base_seen = baseline_seen_pixels(*scene.baseline_rays, ro.roi);
+  if (!base_seen.empty() && !captures.both.empty()) cv::bitwise_or(ro.seen, base_seen, ro.seen);
   // With its own geometry the baseline sees the skin elsewhere in the image: each phase is
   // registered to its own first frame, and the maps bring both onto the chart. With the phase
   // registration too: the skin's move between the phases is the registration's, not the camera's.
@@ -270,6 +285,7 @@ void read_phases(const AssessmentScene& scene, const CaptureSources& captures, b
                   std::function<void(int, int)> progress) {
     CaptureReadOptions r = ro;
     r.role = role;
+    if (role == "baseline" && !base_seen.empty()) r.seen = base_seen;
     MotionReference& ref = (own_geometry || o.phase_registration.enabled) && role == "worn" ? worn_reference : reference;
     r.on_frame = nullptr;
     if (o.timeseries.enabled && series && r.roi.area() > 0) {

@@ -330,9 +330,10 @@ std::vector<Hotspot> find_hotspots(const ChartField& field, const ChartField* si
       if (sigma && std::abs(a.sum_vf) > 0) {
         const Vec3 cop = a.cp / a.sum_vf;
         const double trace = a.k2 - 2 * cop.dot(a.k1) + cop.squaredNorm() * a.k0;
-        h.centre_of_pressure_sigma_mm = std::sqrt(std::max(0.0, trace)) / std::abs(a.sum_vf);
+        // No weighing texel with a known σ (all saturated: lower bounds): the σ is unknown, not 0.
+        if (a.k0 > 0) h.centre_of_pressure_sigma_mm = std::sqrt(std::max(0.0, trace)) / std::abs(a.sum_vf);
       }
-      if (sigma) {
+      if (sigma && a.m0 > 0) {  // else no outline texel within its σ of the threshold: unknown, not 0
         const Vec3& c = h.centroid_mean_mm;
         h.centroid_sigma_mm = std::sqrt(std::max(0.0, a.m2 - 2 * c.dot(a.m1) + c.squaredNorm() * a.m0)) / a.sum_w;
       }

@@ -232,5 +232,33 @@ TEST(Hotspots, CentreOfPressureOfAGatedFieldWeighsItAboveItsOutline) {
   EXPECT_LT(measured, at_t);
 }
 
+TEST(Hotspots, APlaceOfSaturatedTexelsHasNoSigmaRatherThanZero) {
+  // A speck read at the calibration's saturation (its texels' σ unknown: lower bounds) beside texels far under the
+  // threshold (a lossy capture's gate): nothing propagates a σ to its centres, which must then be unknown (NaN, null
+  // in the report), not 0 (seen at 640×360 CRF 28: "centre of pressure ± 0.00 mm").
+  const NoisyPlace place;
+  ChartField f = place.clean, s = place.sigma;
+  const Vec2 centre = 0.5 * (place.chart.uv_min + place.chart.uv_max);
+  for (int j = 0; j < place.grid.height; ++j)
+    for (int i = 0; i < place.grid.width; ++i) {
+      const auto k = place.grid.index(i, j);
+      if (!std::isfinite(f.value[k])) continue;
+      const bool in = (place.grid.uv(i, j) - centre).norm() < 0.5;
+      f.value[k] = in ? 13.7f : 0.f;
+      s.value[k] = in ? NAN : 0.3f;
+    }
+  const auto hs = find_hotspots(f, &s, nullptr, place.raster, place.options(4.3), nullptr, &place.part.mesh);
+  ASSERT_EQ(hs.size(), 1u);
+  EXPECT_NEAR(hs[0].area_mm2, kPi * 0.25, 0.1);
+  EXPECT_TRUE(std::isnan(hs[0].centre_of_pressure_sigma_mm)) << hs[0].centre_of_pressure_sigma_mm;
+  EXPECT_TRUE(std::isnan(hs[0].centroid_sigma_mm)) << hs[0].centroid_sigma_mm;
+  // One texel with a known σ inside it gives the centre of pressure a σ again.
+  const auto k = place.grid.index(place.grid.width / 2 + 3, place.grid.height / 2);  // 0.15 mm off the centre
+  s.value[k] = 0.3f, f.value[k] = 13.0f;
+  const auto one = find_hotspots(f, &s, nullptr, place.raster, place.options(4.3), nullptr, &place.part.mesh);
+  ASSERT_EQ(one.size(), 1u);
+  EXPECT_GT(one[0].centre_of_pressure_sigma_mm, 0);
+}
+
 }  // namespace
 }  // namespace clearfit
