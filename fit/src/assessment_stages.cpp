@@ -283,6 +283,11 @@ void extend_detection(const PressureCalibration& calibration, const ChartField& 
 }
 }  // namespace
 
+double local_gate(double gate, double sigma_y, double typical_sigma) {
+  if (!(typical_sigma > 0) || !std::isfinite(sigma_y)) return gate;
+  return gate * std::max(1.0, sigma_y / typical_sigma);
+}
+
 std::vector<std::uint8_t> calibrated_pressure(const PressureCalibration& calibration, bool spatial_noise, const AssessmentOptions& o,
                                               Assessment& a) {
   const ChartGrid& g = a.signal.y.grid;
@@ -302,10 +307,13 @@ std::vector<std::uint8_t> calibrated_pressure(const PressureCalibration& calibra
   // included) is below detection. The gate is signal_threshold_sigmas (5), not the calibration's own
   // detection_sigmas (3): at 3 σ the texture left in a held or lossy capture's signal became false places
   // at 4.3 kPa (21 on AssessCli's wristband, 2 on LossyCli's), while the σ coverage gained 0.6 points.
+  // The calibration's gate is a signal for a texel of this capture's typical noise (the median σ_y); a texel whose own
+  // σ_y is larger (beside a glare mask, at the seen outline, seen obliquely) needs as much more (local_gate).
   const double gate = calibration.detection_signal();
   for (std::size_t k = 0; k < g.size(); ++k)
     if (a.pressure_status[k] == static_cast<std::uint8_t>(PressureStatus::ok) &&
-        !(a.signal.y.value[k] >= gate && (!spatial_noise || a.signal.y.value[k] >= o.signal_threshold_sigmas * a.signal.sigma_y.value[k]))) {
+        !(a.signal.y.value[k] >= local_gate(gate, a.signal.sigma_y.value[k], a.signal.noise_sigma) &&
+          (!spatial_noise || a.signal.y.value[k] >= o.signal_threshold_sigmas * a.signal.sigma_y.value[k]))) {
       a.pressure_status[k] = static_cast<std::uint8_t>(PressureStatus::below_detection);
       a.pressure_sigma.value[k] = kNaN;  // 0 kPa below detection is a bound, not an estimate
     }

@@ -401,6 +401,34 @@ TEST(AssessmentStages, LinearCalibrationInvertsTheSharpenedSignalAndGatesByTheTe
   EXPECT_NEAR(lossy.below_detection_fraction, 0.5, 1e-12);
 }
 
+TEST(AssessmentStages, CalibrationsGateRisesWithATexelsOwnNoiseAboveTheCapturesMedian) {
+  // y = 0.01·p, the calibration's gate 0.003 (3 σ of its presses' 0.001), a lossless capture of median σ_y 0.001. A texel
+  // beside a mask with twice that σ needs 0.006: 0.005 there is below detection (5 σ of the median, 2.5 of its own),
+  // 0.0065 is detected; at the median σ (or below it) the calibration's 0.003 stands.
+  EXPECT_DOUBLE_EQ(local_gate(0.003, 0.002, 0.001), 0.006);
+  EXPECT_DOUBLE_EQ(local_gate(0.003, 0.0005, 0.001), 0.003);
+  EXPECT_DOUBLE_EQ(local_gate(0.003, kNaN, 0.001), 0.003);
+  EXPECT_DOUBLE_EQ(local_gate(0.003, 0.002, 0.0), 0.003);  // no median σ: the calibration's gate
+  const PressureCalibration cal = linear_calibration();
+  const ChartGrid g = grid(4, 1, 0.1);
+  Assessment a;
+  a.signal.y = {g, {0.005f, 0.005f, 0.0065f, 0.0029f}};
+  a.signal.sigma_y = {g, {0.001f, 0.002f, 0.002f, 0.0005f}};
+  a.signal.noise_sigma = 0.001;
+  a.signal_sigma = a.signal.sigma_y;
+  AssessmentOptions o;
+  o.hysteresis_sigmas = o.signal_threshold_sigmas;  // the gate alone
+  calibrated_pressure(cal, false, o, a);
+  auto status = [&](int k) { return static_cast<PressureStatus>(a.pressure_status[k]); };
+  EXPECT_EQ(status(0), PressureStatus::ok);
+  EXPECT_NEAR(a.pressure.value[0], 0.5, 1e-4);
+  EXPECT_EQ(status(1), PressureStatus::below_detection);
+  EXPECT_EQ(a.pressure.value[1], 0.f);
+  EXPECT_EQ(status(2), PressureStatus::ok);
+  EXPECT_EQ(status(3), PressureStatus::below_detection);
+  EXPECT_NEAR(a.detection_limit.kpa, 0.3, 1e-4);  // the limit reported is the median texel's
+}
+
 TEST(AssessmentStages, HysteresisKeepsAPlacesTailButNotIsolatedNoise) {
   // y = 0.01·p, a capture with its own noise (σ_y 0.01, gate 5 σ = 0.05, hysteresis 2 σ = 0.02). One row:
   // a place (0.08 detected) with a tail 0.04, 0.03 beside it, then 0.01 (1 σ: not kept), and apart from

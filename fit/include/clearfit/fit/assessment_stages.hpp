@@ -99,11 +99,27 @@ ChartField signal_sigma(const BlanchingSignal& signal, const ChartField& positio
 
 // ---- Pressure (stage 5) ----
 
+/// The detection gate of one texel: the calibration's `gate` (a signal) holds for a texel of the capture's typical
+/// noise (`typical_sigma`, the median σ_y); a texel whose own `sigma_y` is larger needs that many times more,
+/// gate · max(1, sigma_y / typical_sigma): the same significance everywhere. Beside a glare mask or the seen outline
+/// a texel's smoothing holds fewer camera pixels (and at the band's oblique ends one pixel spans several texels), so
+/// its σ_y is larger: within 5 texels of a mask 1.37× the median on average, up to 2.2× (quarter-scale wristband,
+/// 27 glare cases, seeds 21-25), while y/σ_y kept a spread of 1.0 there as inside. With the calibration's gate
+/// alone (3 σ of its presses' noise: 5.5-6 σ of these captures' median σ_y, 3-4 σ where σ_y is 1.5-2× it) such
+/// texels crossed it on noise: a false 0.64 mm² place of 5.3 kPa beside a highlight that appears when worn, 0.3-0.5 mm²
+/// places of 4.8-5.0 kPa at the band's oblique end on one seed of five, and PhotometricCli's glare scene sat at 0.99 of
+/// the gate beside its mask. With the local gate the unpressed texel nearest its gate is at 0.80 of it within 15 texels
+/// of a mask (was 1.22) and 0.79 elsewhere (was 1.15): 0 false places, the true places unchanged (the hysteresis
+/// reads their tails).
+/// `gate` itself where either σ is unknown or not positive.
+double local_gate(double gate, double sigma_y, double typical_sigma);
+
 /// The signal turned into pressure through the calibration (PressureCalibration::invert of the sharpened
 /// signal, a.signal_sigma its σ): fills a.calibrated, a.pressure, a.pressure_sigma, a.pressure_status and
 /// the summary figures: below-detection and saturated fractions of the seen texels; peak and mean kPa over every
-/// seen texel, below detection as 0 kPa (σ NaN), saturated at its lower bound. With `spatial_noise` (a lossy capture,
-/// or phases with their own geometry) a texel below o.signal_threshold_sigmas of its own σ_y is below detection too.
+/// seen texel, below detection as 0 kPa (σ NaN), saturated at its lower bound. A texel below the calibration's detection
+/// signal, raised where its σ_y is above the median (local_gate), is below detection. With `spatial_noise` (a lossy
+/// capture, or phases with their own geometry) a texel below o.signal_threshold_sigmas of its own σ_y is below detection too.
 /// Reads a.signal, a.blur_effect (may be empty) and a.signal_sigma; returns 1 per saturated texel.
 /// Also fills a.detection_limit (detection_limit below, at a.signal.noise_sigma).
 std::vector<std::uint8_t> calibrated_pressure(const PressureCalibration& calibration, bool spatial_noise, const AssessmentOptions& o,
