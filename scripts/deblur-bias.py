@@ -45,3 +45,22 @@ for c in [1.0, 0.75]:
   nz = gaussian_filter(rng.normal(size=y.shape), sm/t); nz /= nz.std()
   dog2 = nz + sum(a*(nz - gaussian_filter(nz, cc/t)) for a, cc in terms)
   print(f'c {c}: mean bias {np.mean(pe[place]-p[place]):+.3f}, peak {pe.max():.3f}; noise gain {dog2.std():.3f}')
+print('--- what the deblur leaves (deblur_residual, logistic_residual; the hotspots\' mean and area sigma since 2026-11-29)')
+# r = y' - D(G_beta*y'): the deblur's miss read on the sharpened signal alone; the exact miss G_beta^-1 y - y' by FFT
+# (band-limited where the inverse's gain passes e^12). In kPa over the place read at >= 6.5 kPa, the 10 kPa place
+# of sigma 1.5 mm (and 1.0 / 2.0 mm). The logistic's curvature on the skin's blur: 1/2 b^2 (f''/f') |grad p|^2.
+c = 1.0; B = b*b + sm*sm
+terms = [(2*B/c**2, c), (-B/(2*c**2), c*2**0.5)]
+D = lambda z: z + sum(a*(z - gaussian_filter(z, cc/t)) for a, cc in terms)
+k = 2*np.pi*np.fft.fftfreq(n, t); K2 = np.add.outer(k**2, k**2)
+exact = lambda z: np.real(np.fft.ifft2(np.fft.fft2(z)*np.where(K2*B/2 < 12, np.exp(np.minimum(K2*B/2, 12)), 0)))
+for sig in [1.5, 1.0, 2.0]:
+  p = 10 * np.exp(-(X**2 + Y**2) / (2 * sig**2)); place = p >= 6.5
+  y = gaussian_filter(f(gaussian_filter(p, b/t)), sm/t)
+  yc = D(y); pe = finv(yc); est = pe >= 6.5
+  r = yc - D(gaussian_filter(yc, np.sqrt(B)/t))
+  kpa = lambda dy: np.mean((finv(yc + dy) - pe)[est])
+  ps = gaussian_filter(pe, b/t); gy, gx = np.gradient(ps, t)
+  lg = 0.5*b*b*(1 - 2/(1 + np.exp(-(ps - 8.0)/2.0)))/2.0*(gx**2 + gy**2)
+  print(f'sigma {sig}: place mean - truth {pe[est].mean() - p[place].mean():+.3f} kPa (area {(est.sum() - place.sum())*t*t:+.2f} mm2); '
+        f'the miss {kpa(exact(y) - yc):+.3f}, read {kpa(r):+.3f}; logistic term over the place {np.mean(lg[est]):+.3f} kPa')

@@ -575,7 +575,9 @@ void pressure_and_hotspots(const AssessmentScene& scene, const std::optional<Pre
     a.thresholds = o.thresholds_kpa;
     warn_thresholds_below_detection(a.thresholds, a.detection_limit, a.warnings);
     ho.thresholds = a.thresholds;
-    ho.shared_sigma = &a.pressure_shared_sigma;
+    ho.shared_sigma = &a.pressure_sigma_parts.shared;
+    ho.model_sigma = &a.pressure_sigma_parts.blur;
+    ho.residual = &a.pressure_sigma_parts.residual;
     ho.outline_level = a.detection_limit.tail_kpa;  // a detected place is read down to its tail only
     a.hotspots = find_hotspots(search, &a.pressure_sigma, &saturated, a.raster, ho, &a.hotspot_labels, scene.mesh);
   } else {

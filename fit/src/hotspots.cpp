@@ -139,16 +139,19 @@ cv::Mat weighing_share(const ChartField& field, const cv::Mat& labels, double ou
 }
 
 struct LevelSums {
-  // noise_sum, shared_sum: Σ area σ_n and Σ area σ_s over the level; outline_var: Σ over the band |v − t| < σ of
-  // area σ_n² ℓ / (2σ|∇v|) (the outline's noise, in mm⁴); outline_shared: Σ over it of area σ_s / (2σ) (mm²).
-  double area = 0, sum = 0, noise_sum = 0, shared_sum = 0, outline_var = 0, outline_shared = 0;
+  // noise_sum, shared_sum, residual_sum: Σ area σ_n, Σ area σ_s and Σ area r over the level; outline_var: Σ over the
+  // band |v − t| < σ of area σ_n² ℓ / (2σ|∇v|) (the outline's noise, in mm⁴); outline_shared, outline_residual: Σ over
+  // it of area σ_s / (2σ) and area r / (2σ) (mm²).
+  double area = 0, sum = 0, noise_sum = 0, shared_sum = 0, residual_sum = 0, outline_var = 0, outline_shared = 0, outline_residual = 0;
   long long texels = 0;
 };
 
-/// A texel's σ split into its shared part (at most σ) and the noise's, σ_n = √(σ² − σ_s²).
-std::pair<double, double> split_sigma(double s, const ChartField* shared, std::size_t k) {
-  const double sh = shared && std::isfinite(shared->value[k]) ? std::min<double>(std::abs(shared->value[k]), s) : 0.0;
-  return {std::sqrt(std::max(0.0, s * s - sh * sh)), sh};
+/// A texel's σ split into its shared part (at most σ) and the noise's, σ_n = √(σ² − σ_s² − σ_m²), with σ_m the
+/// model's part (at most what the shared part leaves).
+std::pair<double, double> split_sigma(double s, const HotspotOptions& o, std::size_t k) {
+  auto part = [k](const ChartField* f) { return f && std::isfinite(f->value[k]) ? std::abs(static_cast<double>(f->value[k])) : 0.0; };
+  const double sh = std::min(part(o.shared_sigma), s), left = s * s - sh * sh, m = std::min(part(o.model_sigma) * part(o.model_sigma), left);
+  return {std::sqrt(std::max(0.0, left - m)), sh};
 }
 
 /// A level's area, mean and their σ (HotspotLevel) from its sums.
@@ -156,15 +159,20 @@ HotspotLevel level_figures(const LevelSums& L, double threshold, bool with_sigma
   HotspotLevel lv;
   lv.threshold = threshold;
   lv.area_mm2 = L.area;
-  lv.area_sigma_mm2 = with_sigma ? std::sqrt(L.outline_var + L.outline_shared * L.outline_shared) : 0.0;
+  lv.area_sigma_mm2 =
+      with_sigma ? std::sqrt(L.outline_var + L.outline_shared * L.outline_shared + L.outline_residual * L.outline_residual) : 0.0;
   lv.mean = L.area > 0 ? L.sum / L.area : kNaN;
   lv.mean_sigma = kNaN;
   if (L.area > 0) {
-    // The noise's mean σ over √(independent samples in the region), the shared σ's mean as it is, and
-    // the outline's motion: texels of value ≈ t join or leave, moving the mean by (t − mean) δA / A.
+    // The noise's mean σ over √(independent samples in the region), the shared σ's mean as it is, the outline's
+    // motion with them (texels of value ≈ t join or leave, moving the mean by (mean − t) δA / A), and the model's
+    // residual: its mean over the region (the texels read that much off) less the mean's change as its sum over the
+    // outline's band moves the outline (a place read low is also read smaller, its lowest texels left out).
     const double noise = (L.noise_sum / L.area) / std::sqrt(std::max(1.0, L.area * samples_per_mm2));
-    const double outline = (lv.mean - threshold) * lv.area_sigma_mm2 / L.area, shared = L.shared_sum / L.area;
-    lv.mean_sigma = std::sqrt(noise * noise + shared * shared + outline * outline);
+    const double random_outline = with_sigma ? std::sqrt(L.outline_var + L.outline_shared * L.outline_shared) : 0.0;
+    const double outline = (lv.mean - threshold) * random_outline / L.area, shared = L.shared_sum / L.area;
+    const double residual = L.residual_sum / L.area - (lv.mean - threshold) * L.outline_residual / L.area;
+    lv.mean_sigma = std::sqrt(noise * noise + shared * shared + residual * residual + outline * outline);
   }
   lv.texels = L.texels;
   return lv;
@@ -248,7 +256,8 @@ std::vector<Hotspot> find_hotspots(const ChartField& field, const ChartField* si
         continue;
       }
       const double s = sigma ? sigma->value[k] : kNaN;
-      const auto [s_noise, s_shared] = std::isfinite(s) ? split_sigma(s, options.shared_sigma, k) : std::pair{kNaN, kNaN};
+      const auto [s_noise, s_shared] = std::isfinite(s) ? split_sigma(s, options, k) : std::pair{kNaN, kNaN};
+      const double r = options.residual && std::isfinite(options.residual->value[k]) ? options.residual->value[k] : 0.0;
       const double ell = std::sqrt(std::max(area, 1.0 / options.samples_per_mm2));
       double gradient = -1;  // computed once, where a level's outline needs it
       for (std::size_t t = 0; t < thresholds.size(); ++t) {
@@ -257,12 +266,13 @@ std::vector<Hotspot> find_hotspots(const ChartField& field, const ChartField* si
           if (gradient < 0) gradient = gradient_norm(field, i, j);
           // Without a gradient (an isolated texel) the whole band's half counts as shared.
           if (gradient > 0)
-            L.outline_var += area * s_noise * s_noise * ell / (2 * s * gradient), L.outline_shared += area * s_shared / (2 * s);
+            L.outline_var += area * s_noise * s_noise * ell / (2 * s * gradient), L.outline_shared += area * s_shared / (2 * s),
+            L.outline_residual += area * r / (2 * s);
           else
             L.outline_shared += 0.5 * area;
         }
         if (v < thresholds[t]) continue;
-        L.area += area, L.sum += v * area, L.noise_sum += s_noise * area, L.shared_sum += s_shared * area, ++L.texels;
+        L.area += area, L.sum += v * area, L.noise_sum += s_noise * area, L.shared_sum += s_shared * area, L.residual_sum += r * area, ++L.texels;
       }
       if (std::isfinite(s) && s > 0 && std::abs(v - thresholds.front()) < s && raster.face[k] >= 0) {
         // The outline moves with the noise by σ/|∇v| and takes texels of value t with it: over the band

@@ -215,8 +215,9 @@ double gamma_cdf(int n, double x) {
 /// was 32.3 (P 1e-7); over the seen texels 7 of 8 and 11.2 (P 0.13); with the fit's stretch 8 of 8 and 7.3. The mean
 /// (the 10 kPa place's: the 14 kPa place is saturated, its mean has no σ) read 0.2–0.4 kPa low with the deblur's
 /// smoothed Laplacian, 0.0–0.3 kPa with its difference of Gaussians (README, kPa ± σ: noise-free, half of what is left
-/// is the logistic's curvature, the skin's blur acting before it, half the deblur's own shortfall); its σ counts the blur's term as one error over the
-/// place (shared_pressure_sigma), not as noise averaged down.
+/// is the logistic's curvature, the skin's blur acting before it, half the deblur's own shortfall); its σ counts the model's residual (what the
+/// deblur and the logistic's curvature leave, pressure_sigma_parts) as one error over the place, not as noise averaged down: rms z 0.95 over
+/// seeds 1–4, 11–16, 21–26, 31–34 (0.51 when the blur's whole first-order term stood in for it).
 void check_place_figures(const std::map<std::string, Figure>& places) {
   for (const auto& [what, f] : places) {
     const double low = binomial_cdf(f.held, f.n, 0.90), high = 1 - binomial_cdf(f.held - 1, f.n, 0.98);

@@ -2,7 +2,8 @@
 // checks that refuse or warn about captures at their thresholds, the pose's and the camera model's
 // position σ, the projection uncertainty over the seen contact surface and its warning, the blur's
 // first-order effect on a paraboloid and a Gaussian place, the deblur's noise gain, the signal's σ in quadrature, the centres' position term and the
-// pressure through a linear calibration with its detection gate.
+// pressure through a linear calibration with its detection gate; the deblur's residual on a Gaussian place and the
+// logistic's curvature residual on a ramp.
 #include <clearfit/error.hpp>
 #include <clearfit/fit/assessment_stages.hpp>
 
@@ -355,6 +356,61 @@ PressureCalibration linear_calibration() {
   cal.p_min_kpa = 0, cal.p_max_kpa = 30;
   cal.person = "p";
   return cal;
+}
+
+TEST(AssessmentStages, DeblurResidualOfAGaussianPlaceIsMostOfWhatTheDeblurMisses) {
+  // y0 a Gaussian place of σ0 = 1.5 mm, y = G_β∗y0 (a Gaussian of σ0² + β²) read through the deblur: it misses
+  // y0 − y' (1.2 % of the peak at c = 1 mm), and the residual read on y' alone is 93 % of that at the peak
+  // (95 % over the place within σ0; 81 % at the peak for σ0 = 1 mm, 97 % for 2 mm: the noise-free model,
+  // scripts/deblur-bias.py).
+  const double texel = 0.05, s0 = 1.5, amp = 0.03;
+  const ChartGrid g = grid(301, 301, texel);
+  BlanchingOptions o;
+  o.skin_blur_mm = 0.3, o.smoothing_mm = 0.25, o.curvature_smoothing_mm = 1.0;
+  const double b2 = 0.3 * 0.3 + 0.25 * 0.25, sy2 = s0 * s0 + b2;
+  BlanchingSignal s;
+  s.y = constant(g, 0.f);
+  for (int j = 0; j < g.height; ++j)
+    for (int i = 0; i < g.width; ++i) {
+      const double u = (i - 150) * texel, v = (j - 150) * texel;
+      s.y.value[g.index(i, j)] = static_cast<float>(amp * s0 * s0 / sy2 * std::exp(-(u * u + v * v) / (2 * sy2)));
+    }
+  const ChartField sharp = sharpened_signal(s.y, blur_effect(s, o));
+  const ChartField r = deblur_residual(sharp, o);
+  const double miss = amp - sharp.value[g.index(150, 150)], read = r.value[g.index(150, 150)];
+  std::printf("peak: the deblur misses %.3g, its residual reads %.3g (%.1f %%)\n", miss, read, 100 * read / miss);
+  EXPECT_NEAR(miss / amp, 0.012, 0.002);
+  EXPECT_NEAR(read / miss, 0.93, 0.03);
+  EXPECT_TRUE(std::isnan(r.value[g.index(0, 150)]));  // the grid's edge: undeblurred
+  // An unseen texel: its neighbours' residual is unknown.
+  ChartField holed = sharp;
+  holed.value[g.index(100, 100)] = kNaN;
+  const ChartField rh = deblur_residual(holed, o);
+  EXPECT_TRUE(std::isnan(rh.value[g.index(101, 100)]));
+  EXPECT_TRUE(std::isfinite(rh.value[g.index(150, 150)]));
+}
+
+TEST(AssessmentStages, LogisticResidualIsHalfTheBlurSquaredTimesTheCurvatureRatioTimesTheSlopeSquared) {
+  // p = 4 + 2·u kPa (a ramp: blurring keeps it, |∇p| = 2 kPa/mm): ½b²(1 − 2σ((p − p50)/w))/w·|∇p|², positive below p50.
+  const ChartGrid g = grid(120, 40, 0.05);
+  PressureCalibration cal;
+  cal.model = PressureModelKind::logistic;
+  cal.logistic = {0.05, 8.0, 2.0};
+  cal.person = "p";
+  const ChartField p = field(g, 2.0, 0.0);
+  ChartField ramp = p;
+  for (float& v : ramp.value) v += 4.f;
+  const double b = 0.3;
+  const ChartField r = logistic_residual(cal, ramp, b);
+  for (int i = 30; i < 90; i += 10) {
+    const auto k = g.index(i, 20);
+    const double pk = ramp.value[k], expected = 0.5 * b * b * (1 - 2 / (1 + std::exp(-(pk - 8.0) / 2.0))) / 2.0 * 4.0;
+    EXPECT_NEAR(r.value[k], expected, 1e-3 * std::abs(expected) + 1e-6) << "p " << pk;
+  }
+  EXPECT_GT(r.value[g.index(30, 20)], 0.f);  // p 7 kPa: read low
+  EXPECT_LT(r.value[g.index(90, 20)], 0.f);  // p 13 kPa: read high
+  EXPECT_EQ(logistic_residual(linear_calibration(), ramp, b).value[g.index(60, 20)], 0.f);
+  EXPECT_EQ(logistic_residual(cal, ramp, 0.0).value[g.index(60, 20)], 0.f);
 }
 
 TEST(AssessmentStages, LinearCalibrationInvertsTheSharpenedSignalAndGatesByTheTexelsOwnNoise) {

@@ -2,7 +2,8 @@
 // its area at each level (closed forms of a Gaussian), ids and label image
 // agree, unseen texels between two pressed parts join them as unseen (not as
 // 0), the centroid lies on a curved surface while the 3D mean lies inside, and the centres' σ match their
-// scatter over noise realisations (a gated field's too).
+// scatter over noise realisations (a gated field's too), and a model's residual moves a place's mean and area as
+// raising the field by it does.
 #include <clearfit/fit/hotspots.hpp>
 #include <clearfit/geometry/chart.hpp>
 #include <clearfit/geometry/shapes.hpp>
@@ -258,6 +259,34 @@ TEST(Hotspots, APlaceOfSaturatedTexelsHasNoSigmaRatherThanZero) {
   const auto one = find_hotspots(f, &s, nullptr, place.raster, place.options(4.3), nullptr, &place.part.mesh);
   ASSERT_EQ(one.size(), 1u);
   EXPECT_GT(one[0].centre_of_pressure_sigma_mm, 0);
+}
+
+TEST(Hotspots, ModelResidualMovesTheMeanAndAreaAsRaisingTheFieldByItDoes) {
+  // σ all the model's allowance (HotspotOptions::model_sigma: no noise, nothing shared) and a residual r0 everywhere
+  // (the truth is the field + r0): the mean's σ is then its residual term alone, r0 less the mean's rise as the
+  // outline moves in, and the area's its band sum. Brute force: the place of the field raised by r0.
+  const NoisyPlace place;
+  const double threshold = 6.5, r0 = 0.2;
+  HotspotOptions o = place.options(threshold);
+  const ChartField model{place.grid, std::vector<float>(place.grid.size(), 0.5f)};
+  const ChartField residual{place.grid, std::vector<float>(place.grid.size(), static_cast<float>(r0))};
+  o.model_sigma = &model, o.residual = &residual;
+  ChartField raised = place.clean;
+  for (float& v : raised.value) v += static_cast<float>(r0);
+  const auto hs = find_hotspots(place.clean, &model, nullptr, place.raster, o, nullptr, &place.part.mesh);
+  const auto truth = find_hotspots(raised, nullptr, nullptr, place.raster, place.options(threshold), nullptr, &place.part.mesh);
+  ASSERT_EQ(hs.size(), 1u);
+  ASSERT_EQ(truth.size(), 1u);
+  const double mean_shift = truth[0].mean - hs[0].mean, area_shift = truth[0].area_mm2 - hs[0].area_mm2;
+  std::printf("raised by %.1f: mean %+.4f (sigma %.4f), area %+.4f mm2 (sigma %.4f)\n", r0, mean_shift, hs[0].mean_sigma, area_shift,
+              hs[0].levels[0].area_sigma_mm2);
+  EXPECT_NEAR(hs[0].mean_sigma, std::abs(mean_shift), 0.1 * std::abs(mean_shift));
+  EXPECT_NEAR(hs[0].levels[0].area_sigma_mm2, std::abs(area_shift), 0.1 * std::abs(area_shift));
+  EXPECT_LT(std::abs(mean_shift), 0.5 * r0);  // the outline's move offsets most of the texels' own
+  // As noise (no model_sigma, no residual), the same σ averages down over the place's samples and moves its outline.
+  const auto as_noise = find_hotspots(place.clean, &model, nullptr, place.raster, place.options(threshold), nullptr, &place.part.mesh);
+  EXPECT_GT(as_noise[0].levels[0].area_sigma_mm2, 0);
+  EXPECT_NE(as_noise[0].mean_sigma, hs[0].mean_sigma);
 }
 
 }  // namespace

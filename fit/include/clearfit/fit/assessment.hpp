@@ -154,6 +154,19 @@ struct DetectionLimit {
   double tail_kpa = std::numeric_limits<double>::quiet_NaN(); ///< the pressure at hysteresis_sigmas of the capture's noise (NaN: the hysteresis is off)
 };
 
+/// The parts of a texel's pressure σ that are not noise, and the deblur's residual (kPa, on the chart grid; NaN where
+/// pressure_sigma is). The hotspots (HotspotOptions) take `shared` undivided in a place's mean and area, take `blur`
+/// out of the noise and leave it out of a place's figures, which take the mean of `residual` instead.
+struct PressureSigmaParts {
+  ChartField shared;    ///< the calibration's parameters (one curve for every texel): one error over a whole place
+  /// The blur's first-order term (|blur_effect| through the inverse): each texel's allowance for what the deblur
+  /// gets wrong there, larger than what a place's mean or outline gets wrong (the residual).
+  ChartField blur;
+  /// Signed, truth less estimate: what the deblur leaves (deblur_residual, in kPa) and what the logistic's curvature
+  /// on the skin's blur leaves (logistic_residual); NaN where unknown.
+  ChartField residual;
+};
+
 struct Assessment {
   PhaseReport baseline, worn;
   BaselineGeometryReport baseline_geometry;
@@ -166,9 +179,9 @@ struct Assessment {
   /// 1-σ of `pressure`, kPa, where it is an estimate (PressureStatus::ok); NaN unseen, below detection
   /// (0 kPa there is a bound, not an estimate) and saturated (a lower bound).
   ChartField pressure_sigma;
-  /// The part of pressure_sigma that is one error over a whole place, not noise (shared_pressure_sigma,
-  /// assessment_stages.hpp): the hotspots' means and areas take it undivided. NaN where pressure_sigma is.
-  ChartField pressure_shared_sigma;
+  /// The parts of pressure_sigma that a place's figures take otherwise than noise (pressure_sigma_parts,
+  /// assessment_stages.hpp).
+  PressureSigmaParts pressure_sigma_parts;
   std::vector<std::uint8_t> pressure_status; ///< PressureStatus per texel (invalid where unseen)
   double below_detection_fraction = 0, saturated_fraction = 0;  ///< of seen texels
   double peak_kpa = 0, mean_kpa = 0;         ///< over every seen texel: below detection as 0, saturated at its lower bound

@@ -125,11 +125,29 @@ double local_gate(double gate, double sigma_y, double typical_sigma);
 std::vector<std::uint8_t> calibrated_pressure(const PressureCalibration& calibration, bool spatial_noise, const AssessmentOptions& o,
                                               Assessment& a);
 
-/// The part of each texel's pressure σ that is the same error over a whole place rather than noise: the
-/// calibration's parameters (one curve for every texel) and the blur's first-order term (|blur_effect|, a
-/// smooth field: what the first order misses is the place's shape, not noise), through the calibration's
-/// inverse at the sharpened signal. NaN where a.pressure_sigma is. Reads a.signal, a.blur_effect (may be empty).
-ChartField shared_pressure_sigma(const PressureCalibration& calibration, const Assessment& a);
+/// What the deblur leaves of the blur, signed, in the signal's unit: r = y' − D(G_β∗y'), with D the deblur (deblur_terms)
+/// and β² = skin_blur² + smoothing². D approximates G_β⁻¹ and misses M = G_β⁻¹ − D (chiefly the β⁴∇⁴/8 of G_β⁻¹'s
+/// series and the difference of Gaussians' own −β²c⁴∇⁶/24); y' = D y, so r = M G_β y' = M y − M G_β M y: the miss
+/// on y less a second-order term. On the noise-free chain (scripts/deblur-bias.py, its last part) of a 10 kPa Gaussian
+/// place the miss averages 0.118 kPa over the place read at ≥ 6.5 kPa and r reads 0.094 (σ 1.5 mm; 0.475 and 0.298 at
+/// 1 mm, 0.041 and 0.034 at 2 mm). NaN where a 4-neighbour is unseen (the deblur leaves such a texel as it is) and on
+/// the grid's border.
+ChartField deblur_residual(const ChartField& sharpened, const BlanchingOptions& o);
+
+/// What the logistic's curvature leaves in the estimate (kPa, signed, truth less estimate): the signal reads the
+/// logistic f of the pressure blurred by the skin (b = `skin_blur_mm`, before the logistic), and G_b∗f(p) =
+/// f(G_b∗p) + ½b²f''(p)|∇p|² to first order in b², so the deblurred signal is f(p) − ½b²f''|∇p|² and the pressure read
+/// from it ½b²(f''/f')|∇p|² low, f''/f' = (1 − 2σ((p − p50)/w))/w: low below p50 where the slope is steep (a place's
+/// outline), high above it. |∇p| is read on `pressure` blurred by b (normalised over its finite texels). 0 for a
+/// linear calibration or b = 0; NaN where `pressure` is.
+ChartField logistic_residual(const PressureCalibration& calibration, const ChartField& pressure, double skin_blur_mm);
+
+/// The parts of each texel's pressure σ that are not noise (PressureSigmaParts): the calibration's parameters alone, the
+/// blur's first-order term's share (the inverse with σ_y = |blur_effect| beyond the parameters'), each through the
+/// calibration's inverse at the sharpened signal, and the residual: the inverse at y' + deblur_residual (smoothed by
+/// β, its noise left out) less that at y', plus logistic_residual on the pressure read (o.skin_blur_mm). NaN where a.pressure_sigma is (the residual also
+/// where it is unknown). Reads a.signal, a.blur_effect (may be empty: no blur share, no residual).
+PressureSigmaParts pressure_sigma_parts(const PressureCalibration& calibration, const Assessment& a, const BlanchingOptions& o);
 
 /// The detection limit calibrated_pressure applies, for a texel of σ_y = `noise_sigma` (the capture's median): the
 /// gate is the calibration's detection_signal (detection_sigmas of its presses' noise) and, with `spatial_noise`, at

@@ -33,12 +33,14 @@ struct HotspotLevel {
   /// 1-σ of the area: the outline moves by σ/|∇v| where it crosses the threshold. The noise's share of σ
   /// (σ² − shared²) is shared along the outline over the correlation length ℓ = 1/√samples_per_mm2, so it adds
   /// σ_n² ℓ / |∇v|² per mm of outline in variance; the shared share (HotspotOptions::shared_sigma) moves the
-  /// whole outline at once and adds ∫ σ_s / |∇v| along it in σ. Summed over the texels within ±σ of the
+  /// whole outline at once and adds ∫ σ_s / |∇v| along it in σ, and the model's residual r (HotspotOptions::residual)
+  /// |∫ r / |∇v|| in σ. Summed over the texels within ±σ of the
   /// threshold (a band 2σ/|∇v| wide); 0 without a sigma field.
   double area_sigma_mm2 = 0;
   /// Over that area (NaN σ without a sigma field). mean_sigma: the noise's share, its mean over the area
-  /// divided by √(independent samples in it); the shared share's mean over the area, undivided; and the
-  /// outline's motion, (mean − threshold) · area_sigma / area; in quadrature.
+  /// divided by √(independent samples in it); the shared share's mean over the area, undivided; the model's
+  /// residual's mean over the area (HotspotOptions::residual), its size; and the outline's motion,
+  /// (mean − threshold) · area_sigma / area; in quadrature.
   double mean = 0, mean_sigma = 0;
   long long texels = 0;
 };
@@ -91,10 +93,19 @@ struct HotspotOptions {
   /// 1 / (4π σ²) for a field smoothed with a Gaussian of σ mm.
   double samples_per_mm2 = 1.0;
   /// Optional, on the field's grid: the part of each texel's σ that is the same error over a whole place
-  /// rather than noise (with a calibration: its parameters' covariance and the blur's first-order term,
-  /// assessment_stages.hpp shared_pressure_sigma). It is not averaged down in a place's mean and it moves the
-  /// whole outline at once. Null: all of σ is noise.
+  /// rather than noise (with a calibration: its parameters' covariance, PressureSigmaParts::shared; without one
+  /// the blur's first-order term). It is not averaged down in a place's mean and it moves the whole outline at
+  /// once. Null: all of σ is noise (less model_sigma).
   const ChartField* shared_sigma = nullptr;
+  /// Optional, on the field's grid: a part of each texel's σ that is neither noise nor the same error over a
+  /// place, a per-texel allowance for the field's model (with a calibration: the blur's first-order term,
+  /// PressureSigmaParts::blur). It is taken out of the noise and left out of a place's mean and area, which take
+  /// `residual` instead. Null: none.
+  const ChartField* model_sigma = nullptr;
+  /// Optional, on the field's grid, signed, in the field's unit: what the model leaves in the field (with a
+  /// calibration: the deblur's residual, PressureSigmaParts::residual; NaN where unknown, counted 0). Its mean over
+  /// a place is one error of the place's mean, and its sum over the outline's band one motion of the outline.
+  const ChartField* residual = nullptr;
   /// Unseen contact texels (NaN in the field) this close to a place (chart mm)
   /// join it as unseen: they connect the seen parts around them (the face and
   /// the plate beside a bump's wall are one place) and count in unseen_area_mm2,
