@@ -191,6 +191,7 @@ struct PlaceSums {
   Vec2 uv = Vec2::Zero();
   std::set<int> faces;
   long long texels = 0, flagged = 0;
+  bool seeded = false;  // holds a seed texel (HotspotOptions::seeds), or no seeds were given
   std::vector<LevelSums> levels;
 };
 
@@ -286,6 +287,7 @@ std::vector<Hotspot> find_hotspots(const ChartField& field, const ChartField* si
         }
       }
       if (v < thresholds.front()) continue;  // within σ of the outline: in the lowest level's σ only
+      if (!options.seeds || (*options.seeds)[k]) a.seeded = true;
       a.area += area;
       a.texels += 1;
       if (raster.face[k] >= 0) {
@@ -317,7 +319,7 @@ std::vector<Hotspot> find_hotspots(const ChartField& field, const ChartField* si
   std::vector<Hotspot> found;
   for (int l = 1; l < n; ++l) {
     const PlaceSums& a = acc[l];
-    if (a.area < options.min_area_mm2 || a.area <= 0) continue;
+    if (a.area < options.min_area_mm2 || a.area <= 0 || !a.seeded) continue;
     Hotspot h;
     h.id = l;  // provisional: the component label
     h.threshold = thresholds.front();

@@ -289,5 +289,31 @@ TEST(Hotspots, ModelResidualMovesTheMeanAndAreaAsRaisingTheFieldByItDoes) {
   EXPECT_NE(as_noise[0].mean_sigma, hs[0].mean_sigma);
 }
 
+TEST(Hotspots, APlaceWithoutASeedIsNotReported) {
+  // Two Gaussian places over the threshold; seeds (texels significant by their own σ) only in the first: the second
+  // is dropped, its texels unlabelled, and the first keeps its extent, figures and id.
+  const Flat f;
+  const double r = 1.0;
+  const ChartField p = f.field([&](double dx, double dy) {
+    return 10 * std::exp(-((dx + 4) * (dx + 4) + dy * dy) / (2 * r * r)) + 6 * std::exp(-((dx - 4) * (dx - 4) + dy * dy) / (2 * r * r));
+  });
+  HotspotOptions o;
+  o.thresholds = {3.0};
+  std::vector<int> all_labels, seeded_labels;
+  const auto all = find_hotspots(p, nullptr, nullptr, f.raster, o, &all_labels, &f.part.mesh);
+  ASSERT_EQ(all.size(), 2u);
+  std::vector<std::uint8_t> seeds(f.grid.size(), 0);
+  for (int j = 0; j < f.grid.height; ++j)
+    for (int i = 0; i < f.grid.width; ++i) seeds[f.grid.index(i, j)] = f.grid.uv(i, j).x() < f.centre.x();
+  o.seeds = &seeds;
+  const auto seeded = find_hotspots(p, nullptr, nullptr, f.raster, o, &seeded_labels, &f.part.mesh);
+  ASSERT_EQ(seeded.size(), 1u);
+  EXPECT_EQ(seeded[0].id, 1);
+  EXPECT_DOUBLE_EQ(seeded[0].area_mm2, all[0].area_mm2);
+  EXPECT_DOUBLE_EQ(seeded[0].peak, all[0].peak);
+  EXPECT_TRUE(seeded[0].centroid_mm.isApprox(all[0].centroid_mm));
+  for (std::size_t k = 0; k < seeded_labels.size(); ++k) EXPECT_EQ(seeded_labels[k], all_labels[k] == 1 ? 1 : 0) << k;
+}
+
 }  // namespace
 }  // namespace clearfit

@@ -116,6 +116,9 @@ struct HotspotOptions {
   /// place's tail down to DetectionLimit::tail_kpa only, so a place's texels start there. The centre of
   /// pressure weighs each texel by its value above the larger of the two.
   double outline_level = std::numeric_limits<double>::quiet_NaN();
+  /// Optional, on the field's grid (1 = seed): a place must hold a seed, a texel significant by its own σ, to be
+  /// reported (the places keep their extent at the thresholds). Null: every place at the thresholds counts.
+  const std::vector<std::uint8_t>* seeds = nullptr;
 };
 
 /// Places of `field` (8-connected on the texel grid at the lowest threshold,
