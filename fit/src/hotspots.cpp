@@ -299,8 +299,9 @@ std::vector<Hotspot> find_hotspots(const ChartField& field, const ChartField* si
         a.faces.insert(raster.face[k]);
         if (std::isfinite(s) && lift > 0) {
           // ∂c/∂v_i = w_i (x_i − c) / Σ w (v − outline_at); neighbours within the correlation area 1/samples_per_mm2 move
-          // together, those of them that weigh in it (weighing_share).
-          const double kk = area * s * s * std::max<double>(area, shared.at<float>(j, i) / options.samples_per_mm2);
+          // together, those of them that weigh in it (weighing_share). The noise's share of σ only: the shared and model
+          // parts (the calibration's parameters, the deblur's residual) are smooth over a place and hardly move its centre.
+          const double kk = area * s_noise * s_noise * std::max<double>(area, shared.at<float>(j, i) / options.samples_per_mm2);
           a.k0 += kk, a.k1 += kk * raster.point[k], a.k2 += kk * raster.point[k].squaredNorm();
         }
       }

@@ -315,5 +315,31 @@ TEST(Hotspots, APlaceWithoutASeedIsNotReported) {
   for (std::size_t k = 0; k < seeded_labels.size(); ++k) EXPECT_EQ(seeded_labels[k], all_labels[k] == 1 ? 1 : 0) << k;
 }
 
+TEST(Hotspots, CentreOfPressureSigmaIsTheNoisesAlone) {
+  // A texel's σ holds the noise and, as much again, an allowance for the field's model (HotspotOptions::model_sigma,
+  // with a calibration the deblur's term): smooth over a place, it hardly moves its centre. The propagated σ is the
+  // noise's (the scatter over noise realisations), not √2 times it (the lossless captures of scripts/bench-lossy.sh
+  // read errors of 0.3 σ while it was).
+  const NoisyPlace place;
+  HotspotOptions o = place.options(3.0);
+  ChartField total = place.sigma;
+  for (float& v : total.value) v *= static_cast<float>(std::sqrt(2.0));
+  o.model_sigma = &place.sigma;
+  const auto truth = find_hotspots(place.clean, &total, nullptr, place.raster, o, nullptr, &place.part.mesh);
+  ASSERT_EQ(truth.size(), 1u);
+  cv::RNG rng(13);
+  double sum_d2 = 0, sum_predicted = 0;
+  const int runs = 200;
+  for (int r = 0; r < runs; ++r) {
+    const auto hs = find_hotspots(place.realise(rng), &total, nullptr, place.raster, o, nullptr, &place.part.mesh);
+    ASSERT_GE(hs.size(), 1u);
+    sum_d2 += (hs[0].centre_of_pressure_mm - truth[0].centre_of_pressure_mm).squaredNorm();
+    sum_predicted += hs[0].centre_of_pressure_sigma_mm;
+  }
+  const double measured = std::sqrt(sum_d2 / runs), predicted = sum_predicted / runs;
+  std::printf("centre of pressure with a model allowance: rms scatter %.4f mm, propagated sigma %.4f mm\n", measured, predicted);
+  EXPECT_NEAR(predicted, measured, 0.15 * measured);
+}
+
 }  // namespace
 }  // namespace clearfit
