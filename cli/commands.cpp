@@ -38,6 +38,13 @@ std::vector<RegisteredCommand> registered_commands() {
   return commands;
 }
 
+void add_config_option(CLI::App& app, std::string& config_file) {
+  app.set_config("--config", "", "Options from a file (TOML): a [COMMAND] section per command, key = value with the options' long names; the command line wins")
+      ->each([&config_file](const std::string& f) { config_file = f; })
+      ->check(CLI::ExistingFile);
+  app.allow_config_extras(CLI::config_extras_mode::error);
+}
+
 std::string fixed(double v, int digits) { return fixed_digits(v, digits); }
 
 int run_program(int argc, char** argv, const std::string& program, const std::string& description) {
@@ -45,13 +52,8 @@ int run_program(int argc, char** argv, const std::string& program, const std::st
   app.require_subcommand(0, 1);
   app.failure_message(CLI::FailureMessage::help);
   app.set_version_flag("--version", program + " " CLEARFIT_VERSION);
-  // Options from a file: a [COMMAND] section per command of `key = value` lines (the options' long
-  // names without dashes); the command line wins. Keys that name no option are refused.
   std::string config_file;
-  app.set_config("--config", "", "Options from a file (TOML): a [COMMAND] section per command, key = value with the options' long names; the command line wins")
-      ->each([&config_file](const std::string& f) { config_file = f; })
-      ->check(CLI::ExistingFile);
-  app.allow_config_extras(CLI::config_extras_mode::error);
+  add_config_option(app, config_file);
   std::map<CLI::App*, Run> runs;
   // Every subcommand a registration adds (nested ones too) runs its Run.
   for (const auto& command : registered_commands()) {

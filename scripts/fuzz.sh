@@ -15,7 +15,7 @@
 # `scripts/bootstrap.sh fuzz` installs them all.
 set -euo pipefail
 cd "$(dirname "$0")/.."
-TARGETS=(stl obj ply off 3mf gltf glb scene cameramodel pose board tag_layout corners calibration presses force_log manifest)
+TARGETS=(stl obj ply off 3mf gltf glb scene config cameramodel pose board tag_layout corners calibration presses force_log manifest)
 if [ $# -eq 0 ]; then
   echo "targets: ${TARGETS[*]}"
   exit 0

@@ -196,7 +196,10 @@ TEST_F(StudyCli, TrialsBadInputsFailAloneWithTheirMessage) {
 /// A one-node Slurm cluster on localhost with its own munge key and socket.
 class LocalSlurm {
  public:
-  explicit LocalSlurm(const fs::path& dir) : dir_(dir) {
+  /// `dir` holds its state, or /tmp/clearfit-slurm-PID when `dir` is long: munge's and slurmstepd's Unix sockets
+  /// live there, and a socket's path holds at most 107 characters.
+  explicit LocalSlurm(const fs::path& dir)
+      : dir_(dir.string().size() <= 60 ? dir : fs::path("/tmp") / ("clearfit-slurm-" + std::to_string(::getpid()))), own_(dir_ != dir) {
     fs::create_directories(dir_ / "state");
     fs::create_directories(dir_ / "spool");
     fs::permissions(dir_, fs::perms::owner_all);
@@ -235,6 +238,8 @@ class LocalSlurm {
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(500));
     unsetenv("SLURM_CONF");
+    std::error_code ignored;
+    if (own_) fs::remove_all(dir_, ignored);
   }
   bool started() const { return started_; }
   std::string logs() const {
@@ -245,6 +250,7 @@ class LocalSlurm {
   static bool sh(const std::string& command) { return std::system((command + " > /dev/null 2>&1").c_str()) == 0; }
   bool ready() const { return sh("sinfo -h -o %T | grep -q idle"); }
   fs::path dir_;
+  bool own_ = false;  ///< dir_ is not the caller's folder (removed at the end)
   bool started_ = false;
 };
 

@@ -28,6 +28,11 @@ struct RegisteredCommand {
 /// Every registered subcommand, sorted by order.
 std::vector<RegisteredCommand> registered_commands();
 
+/// The program's `--config FILE` option: a TOML file of a [COMMAND] section per command, `key = value` lines
+/// with the options' long names (without dashes); the command line wins and keys that name no option are
+/// refused (CLI::ConfigError). `config_file` receives the file's name, for messages.
+void add_config_option(CLI::App& app, std::string& config_file);
+
 /// Parses the command line, runs the chosen subcommand and picks the exit code:
 /// 0 success, 1 internal error (a bug: please report), 2 bad input.
 int run_program(int argc, char** argv, const std::string& program, const std::string& description);
