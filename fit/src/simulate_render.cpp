@@ -510,8 +510,10 @@ struct CaptureWriter::Video {
   cv::VideoWriter writer;
 };
 
-/// H.264 as a phone writes it: libx264 at a constant rate factor, yuv420p, limited range, BT.709.
-struct CaptureWriter::H264 {
+/// A video written through FFmpeg's libraries: H.264 as a phone writes it (libx264 at a constant rate factor,
+/// yuv420p, limited range, BT.709, in .mp4), or lossless HuffYUV of the RGB24 pixels in .mkv (the stream OpenCV's
+/// writer made, without its swscale pass and the Matroska CRC-32 elements).
+struct CaptureWriter::Libav {
   AVFormatContext* format = nullptr;
   AVCodecContext* codec = nullptr;
   AVStream* stream = nullptr;
@@ -519,41 +521,39 @@ struct CaptureWriter::H264 {
   AVFrame* frame = nullptr;
   AVPacket* packet = nullptr;
   std::int64_t pts = 0;
-  bool header = false;
-  std::string name;
+  bool header = false, h264 = false;
+  std::string name, codec_name;
 
-  H264(const std::filesystem::path& temp, const std::filesystem::path& path, double fps, cv::Size size, int crf) : name(path.string()) {
-    auto fail = [&](const std::string& what) { throw InputError(name, "", "cannot write H.264: " + what, "pick another simulation.format (png always works)"); };
-    if (size.width % 2 != 0 || size.height % 2 != 0) fail("yuv420p needs an even width and height, the image is " + std::to_string(size.width) + "x" + std::to_string(size.height));
-    if (crf < 0 || crf > 51) fail("the CRF must be 0..51, got " + std::to_string(crf));
+  Libav(const std::filesystem::path& temp, const std::filesystem::path& path, VideoFormat f, double fps, cv::Size size, int crf)
+      : h264(f == VideoFormat::h264), name(path.string()), codec_name(h264 ? "H.264" : "HuffYUV") {
+    if (h264 && (size.width % 2 != 0 || size.height % 2 != 0)) fail("yuv420p needs an even width and height, the image is " + std::to_string(size.width) + "x" + std::to_string(size.height));
+    if (h264 && (crf < 0 || crf > 51)) fail("the CRF must be 0..51, got " + std::to_string(crf));
     av_log_set_level(AV_LOG_ERROR);  // libx264 reports its statistics at the info level
-    const AVCodec* enc = avcodec_find_encoder_by_name("libx264");
-    if (enc == nullptr) fail("FFmpeg has no libx264 encoder");
-    if (avformat_alloc_output_context2(&format, nullptr, "mp4", temp.string().c_str()) < 0) fail("no mp4 muxer");
+    const AVCodec* enc = h264 ? avcodec_find_encoder_by_name("libx264") : avcodec_find_encoder(AV_CODEC_ID_HUFFYUV);
+    if (enc == nullptr) fail(h264 ? "FFmpeg has no libx264 encoder" : "FFmpeg has no HuffYUV encoder");
+    if (avformat_alloc_output_context2(&format, nullptr, h264 ? "mp4" : "matroska", temp.string().c_str()) < 0) fail("no muxer");
     stream = avformat_new_stream(format, nullptr);
     codec = avcodec_alloc_context3(enc);
     codec->width = size.width;
     codec->height = size.height;
-    codec->pix_fmt = AV_PIX_FMT_YUV420P;
+    codec->pix_fmt = h264 ? AV_PIX_FMT_YUV420P : AV_PIX_FMT_RGB24;
     codec->framerate = av_d2q(fps, 100000);
     codec->time_base = av_inv_q(codec->framerate);
-    codec->gop_size = std::max(1, static_cast<int>(std::lround(fps)));
-    codec->thread_count = 4;  // fixed: libx264's output depends on its thread count, and the truth must not depend on the machine
-    codec->color_range = AVCOL_RANGE_MPEG;
-    codec->colorspace = AVCOL_SPC_BT709;
-    codec->color_primaries = AVCOL_PRI_BT709;
-    codec->color_trc = AVCOL_TRC_BT709;
-    if (format->oformat->flags & AVFMT_GLOBALHEADER) codec->flags |= AV_CODEC_FLAG_GLOBAL_HEADER;
     AVDictionary* opts = nullptr;
-    av_dict_set(&opts, "crf", std::to_string(crf).c_str(), 0);
-    av_dict_set(&opts, "preset", "fast", 0);
+    if (h264) set_h264(fps, crf, opts);
+    if (format->oformat->flags & AVFMT_GLOBALHEADER) codec->flags |= AV_CODEC_FLAG_GLOBAL_HEADER;
     const int opened = avcodec_open2(codec, enc, &opts);
     av_dict_free(&opts);
-    if (opened < 0) fail("libx264 does not open");
+    if (opened < 0) fail("the encoder does not open");
     avcodec_parameters_from_context(stream->codecpar, codec);
     stream->time_base = codec->time_base;
+    stream->avg_frame_rate = stream->r_frame_rate = codec->framerate;
     if (avio_open(&format->pb, temp.string().c_str(), AVIO_FLAG_WRITE) < 0) fail("the file cannot be created");
-    if (avformat_write_header(format, nullptr) < 0) fail("the header cannot be written");
+    AVDictionary* muxer = nullptr;
+    if (!h264) av_dict_set(&muxer, "write_crc32", "0", 0);  // a checksum over every byte written, which nothing reads
+    const int written = avformat_write_header(format, &muxer);
+    av_dict_free(&muxer);
+    if (written < 0) fail("the header cannot be written");
     header = true;
     frame = av_frame_alloc();
     frame->format = codec->pix_fmt;
@@ -561,13 +561,27 @@ struct CaptureWriter::H264 {
     frame->height = size.height;
     if (av_frame_get_buffer(frame, 0) < 0) fail("no memory for a frame");
     packet = av_packet_alloc();
-    sws = sws_getContext(size.width, size.height, AV_PIX_FMT_BGR24, size.width, size.height, AV_PIX_FMT_YUV420P,
+  }
+  [[noreturn]] void fail(const std::string& what) const {
+    throw InputError(name, "", "cannot write " + codec_name + ": " + what, "pick another simulation.format (png always works)");
+  }
+  /// libx264's settings and the BGR to YUV conversion.
+  void set_h264(double fps, int crf, AVDictionary*& opts) {
+    codec->gop_size = std::max(1, static_cast<int>(std::lround(fps)));
+    codec->thread_count = 4;  // fixed: libx264's output depends on its thread count, and the truth must not depend on the machine
+    codec->color_range = AVCOL_RANGE_MPEG;
+    codec->colorspace = AVCOL_SPC_BT709;
+    codec->color_primaries = AVCOL_PRI_BT709;
+    codec->color_trc = AVCOL_TRC_BT709;
+    av_dict_set(&opts, "crf", std::to_string(crf).c_str(), 0);
+    av_dict_set(&opts, "preset", "fast", 0);
+    sws = sws_getContext(codec->width, codec->height, AV_PIX_FMT_BGR24, codec->width, codec->height, AV_PIX_FMT_YUV420P,
                          SWS_BICUBIC | SWS_ACCURATE_RND | SWS_FULL_CHR_H_INP, nullptr, nullptr, nullptr);
     if (sws == nullptr) fail("no BGR to YUV conversion");
     // Full-range RGB in; BT.709 limited-range YUV out.
     sws_setColorspaceDetails(sws, sws_getCoefficients(SWS_CS_ITU709), 1, sws_getCoefficients(SWS_CS_ITU709), 0, 0, 1 << 16, 1 << 16);
   }
-  ~H264() {
+  ~Libav() {
     if (format != nullptr && format->pb != nullptr) avio_closep(&format->pb);
     sws_freeContext(sws);
     av_packet_free(&packet);
@@ -577,24 +591,33 @@ struct CaptureWriter::H264 {
   }
   void drain() {
     while (avcodec_receive_packet(codec, packet) == 0) {
+      if (packet->duration == 0) packet->duration = 1;  // one frame (HuffYUV leaves it unset)
       av_packet_rescale_ts(packet, codec->time_base, stream->time_base);
       packet->stream_index = stream->index;
-      if (av_interleaved_write_frame(format, packet) < 0) throw InputError(name, "", "cannot write an H.264 packet (disk full?)");
+      if (av_interleaved_write_frame(format, packet) < 0) fail("a packet cannot be written (disk full?)");
     }
   }
   void write(const cv::Mat& bgr) {
-    if (av_frame_make_writable(frame) < 0) throw InputError(name, "", "no memory for an H.264 frame");
-    const std::uint8_t* src[1] = {bgr.data};
-    const int stride[1] = {static_cast<int>(bgr.step[0])};
-    sws_scale(sws, src, stride, 0, bgr.rows, frame->data, frame->linesize);
+    if (av_frame_make_writable(frame) < 0) fail("no memory for a frame");
+    if (sws) {
+      const std::uint8_t* src[1] = {bgr.data};
+      const int stride[1] = {static_cast<int>(bgr.step[0])};
+      sws_scale(sws, src, stride, 0, bgr.rows, frame->data, frame->linesize);
+    } else {
+      for (int y = 0; y < bgr.rows; ++y) {  // BGR to RGB
+        const std::uint8_t* s = bgr.ptr<std::uint8_t>(y);
+        std::uint8_t* d = frame->data[0] + static_cast<std::ptrdiff_t>(y) * frame->linesize[0];
+        for (int x = 0; x < bgr.cols; ++x, s += 3, d += 3) d[0] = s[2], d[1] = s[1], d[2] = s[0];
+      }
+    }
     frame->pts = pts++;
-    if (avcodec_send_frame(codec, frame) < 0) throw InputError(name, "", "libx264 refused a frame");
+    if (avcodec_send_frame(codec, frame) < 0) fail("the encoder refused a frame");
     drain();
   }
   void finish() {
     avcodec_send_frame(codec, nullptr);
     drain();
-    if (av_write_trailer(format) < 0) throw InputError(name, "", "cannot finish the mp4 file");
+    if (av_write_trailer(format) < 0) fail("the file cannot be finished");
     avio_closep(&format->pb);
   }
 };
@@ -611,13 +634,11 @@ CaptureWriter::CaptureWriter(const std::filesystem::path& path, VideoFormat form
     if (ec) throw InputError(path.string(), "", "cannot create the frame folder: " + ec.message());
     return;
   }
-  if (format == VideoFormat::h264) {
-    h264_ = std::make_unique<H264>(temp_, path, fps, size, crf);
+  if (format == VideoFormat::h264 || format == VideoFormat::huffyuv) {
+    libav_ = std::make_unique<Libav>(temp_, path, format, fps, size, crf);
     return;
   }
-  const int fourcc = format == VideoFormat::ffv1 ? cv::VideoWriter::fourcc('F', 'F', 'V', '1')
-                     : format == VideoFormat::huffyuv ? cv::VideoWriter::fourcc('H', 'F', 'Y', 'U')
-                                                      : cv::VideoWriter::fourcc('M', 'J', 'P', 'G');
+  const int fourcc = format == VideoFormat::ffv1 ? cv::VideoWriter::fourcc('F', 'F', 'V', '1') : cv::VideoWriter::fourcc('M', 'J', 'P', 'G');
   video_ = std::make_unique<Video>();
   const std::vector<int> params = format == VideoFormat::mjpg ? std::vector<int>{cv::VIDEOWRITER_PROP_QUALITY, 100} : std::vector<int>{};
   const int api = format == VideoFormat::mjpg ? cv::CAP_OPENCV_MJPEG : cv::CAP_FFMPEG;
@@ -629,7 +650,7 @@ CaptureWriter::CaptureWriter(const std::filesystem::path& path, VideoFormat form
 CaptureWriter::~CaptureWriter() {
   if (done_) return;
   if (video_) video_->writer.release();
-  h264_.reset();
+  libav_.reset();
   std::error_code ec;
   std::filesystem::remove_all(temp_, ec);
 }
@@ -640,8 +661,8 @@ void CaptureWriter::write(const cv::Mat& frame) {
     std::snprintf(name, sizeof name, "frame_%05d.png", frames_);
     if (!cv::imwrite((temp_ / name).string(), frame, {cv::IMWRITE_PNG_COMPRESSION, 1}))
       throw InputError((path_ / name).string(), "", "cannot write the frame");
-  } else if (h264_) {
-    h264_->write(frame);
+  } else if (libav_) {
+    libav_->write(frame);
   } else {
     video_->writer.write(frame);
   }
@@ -650,7 +671,7 @@ void CaptureWriter::write(const cv::Mat& frame) {
 
 void CaptureWriter::finish() {
   if (video_) video_->writer.release();
-  if (h264_) h264_->finish(), h264_.reset();
+  if (libav_) libav_->finish(), libav_.reset();
   std::error_code ec;
   if (std::filesystem::exists(path_)) std::filesystem::remove_all(path_, ec);
   std::filesystem::rename(temp_, path_, ec);

@@ -327,8 +327,8 @@ class CaptureWriter {
   VideoFormat format_;
   struct Video;  // cv::VideoWriter (videoio is private to the module)
   std::unique_ptr<Video> video_;
-  struct H264;   // libx264 through FFmpeg's libraries
-  std::unique_ptr<H264> h264_;
+  struct Libav;  // H.264 (libx264) and HuffYUV through FFmpeg's libraries
+  std::unique_ptr<Libav> libav_;
   int frames_ = 0;
   bool done_ = false;
 };
