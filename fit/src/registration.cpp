@@ -128,9 +128,32 @@ void fit_similarity(const std::vector<Vec2>& q, const std::vector<Vec2>& d, cons
   }
   const double scale = std::max(1.0, chi2 / std::max(2 * wsum - 4, 1.0));
   const Eigen::Matrix2d turn_cov = A.inverse().bottomRightCorner<2, 2>() * scale;
-  const Vec2 ab(s.a, s.b);
-  const double z2 = ab.dot(turn_cov.inverse() * ab);
-  if (!(z2 >= o.turn_significance * o.turn_significance)) s.t = translation, s.a = s.b = 0;
+  const double z2min = o.turn_significance * o.turn_significance;
+  // The scale (a) and the turn (b) each against its own standard error: a significant turn does not keep a
+  // scale that is noise, nor the other way round.
+  const bool scale_kept = s.a * s.a >= z2min * turn_cov(0, 0), turn_kept = s.b * s.b >= z2min * turn_cov(1, 1);
+  if (!scale_kept && !turn_kept) {
+    s.t = translation, s.a = s.b = 0;
+  } else if (scale_kept != turn_kept) {
+    // The one dropped held at no change (a turn alone: the scale at 1, a = cos θ − 1 for b = sin θ), the rest fitted again.
+    const int fixed = scale_kept ? 3 : 2, free = 5 - fixed;
+    const double value = scale_kept ? 0.0 : std::sqrt(std::max(0.0, 1 - s.b * s.b)) - 1;
+    Eigen::Matrix3d R;
+    Eigen::Vector3d r;
+    const int idx[3] = {0, 1, free};
+    for (int i = 0; i < 3; ++i) {
+      r[i] = rhs[idx[i]] - A(idx[i], fixed) * value;
+      for (int j = 0; j < 3; ++j) R(i, j) = A(idx[i], idx[j]);
+    }
+    const Eigen::Vector3d x = R.ldlt().solve(r);
+    if (!x.allFinite()) {
+      s.t = translation, s.a = s.b = 0;
+      return;
+    }
+    s.t = x.head<2>();
+    (scale_kept ? s.a : s.b) = x[2];
+    (scale_kept ? s.b : s.a) = value;
+  }
 }
 
 /// The motion `m` relative to `m0` (both about one centre): the content a frame moved by m0 shows at p is
@@ -403,10 +426,10 @@ namespace {
 /// half-pixel shifts). `linear` maps a step in the template's coordinates to one in the region's.
 /// Returns false when the region runs out or the correlation is lost.
 struct TemplateFit {
-  const cv::Mat &t, &jx, &jy;
+  const cv::Mat &t, &jx, &jy, &tf;
   const double (&h)[4];
   const double (&m)[3];
-  double tt, pixels;
+  double tt, ff, pixels;
   /// `cov`: the translation's covariance (registration px²), from the residual's variance.
   bool run(const SplineSampler& spline, const cv::Mat& coef, const cv::Mat& base_x, const cv::Mat& base_y, const Eigen::Matrix2d& linear,
            bool uniform, int iterations, const cv::Mat& weight, Vec2& delta, double& gain, Eigen::Matrix2d& cov) const {
@@ -418,7 +441,13 @@ struct TemplateFit {
       gain = w.dot(t) / tt;
       if (!(gain > 0)) return false;
       e = w - gain * t;
-      Vec2 step = hessian.partialPivLu().solve(Vec2(jx.dot(e), jy.dot(e))) / gain;
+      // The step is scaled by the frame's contrast against the filtered template, not by `gain`: against a
+      // noisy template (one frame, on dark skin) `gain` is biased low by the template's noise (in Σ t²), and
+      // steps too long by as much do not converge. The Wiener filter's output predicts the texture without that
+      // bias (Σ tf·T ≈ Σ tf²). Measured: dark skin held still read 0.09–0.11 px, 0.06–0.09 px with it.
+      const double contrast = w.dot(tf) / ff;
+      if (!(contrast > 0)) return false;
+      Vec2 step = hessian.partialPivLu().solve(Vec2(jx.dot(e), jy.dot(e))) / contrast;
       if (!step.allFinite()) return false;
       if (step.norm() > 1) step /= step.norm();
       delta -= linear * step;
@@ -463,7 +492,7 @@ RegistrationResult MotionRegistration::solve(const Regions& regions, const Simil
       if (!p.usable || regions[k].f.empty()) return;
       cv::Mat bx, by;
       base_maps(k, regions[k].origin, s, 0, bx, by);
-      const TemplateFit f{p.t, p.jx, p.jy, p.h, p.m, p.tt, p.pixels};
+      const TemplateFit f{p.t, p.jx, p.jy, p.tf, p.h, p.m, p.tt, p.ff, p.pixels};
       Vec2 d = Vec2::Zero();
       if (!f.run(spline, regions[k].coef, bx, by, linear, uniform(k, s), options_.iterations, p.weight, d, gain[k], cov[k]) || d.norm() >= 4)
         return;  // lost
@@ -592,13 +621,17 @@ void MotionRegistration::refresh(Patch& p) const {
   p.t.setTo(0, off);
   gradient(avg, p.tx, p.ty);
   double texture = 0;
-  gradient(wiener(avg, noise, options_.max_frequency, &texture), p.jx, p.jy);
+  const cv::Mat filtered = wiener(avg, noise, options_.max_frequency, &texture);
+  gradient(filtered, p.jx, p.jy);
+  p.tf = filtered(in) - cv::mean(filtered(in), p.weight)[0];
+  p.tf.setTo(0, off);
+  p.ff = p.tf.dot(p.tf);
   if (p.count == 1) p.texture = texture;
   p.h[0] = p.jx.dot(p.tx), p.h[1] = p.jx.dot(p.ty), p.h[2] = p.jy.dot(p.tx), p.h[3] = p.jy.dot(p.ty);
   p.m[0] = p.jx.dot(p.jx), p.m[1] = p.jx.dot(p.jy), p.m[2] = p.jy.dot(p.jy);
   p.tt = p.t.dot(p.t), p.pixels = cv::countNonZero(p.weight);
   const double det = p.h[0] * p.h[3] - p.h[1] * p.h[2];
-  p.usable = std::isfinite(det) && det > 1e-12 * (p.h[0] + p.h[3]) * (p.h[0] + p.h[3]) && p.tt > 0;
+  p.usable = std::isfinite(det) && det > 1e-12 * (p.h[0] + p.h[3]) * (p.h[0] + p.h[3]) && p.tt > 0 && p.ff > 0;
 }
 
 void MotionRegistration::restrict_to_skin(const cv::Mat& bgr) {

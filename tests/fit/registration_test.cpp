@@ -110,9 +110,10 @@ double worst_error(const SkinView& v, MotionRegistration& reg, int count, Frame 
 
 TEST(Registration, StrongBlanchingInEveryPatchIsNotMotion) {
   const SkinView v;
-  // Measured: at most 0.041 px on light skin, 0.092 px on dark (the bar of 0.05 px is met on light
-  // skin only: dark skin's texture is closer to the noise, and its glare leaves 5 of the 9 patches).
-  for (const auto& [tone, texture_seed, bound] : {std::tuple<std::string, std::uint32_t, double>{"light", 7, 0.06}, {"dark", 8, 0.12}}) {
+  // Measured: at most 0.033 px on light skin, 0.086 px on dark; on texture seeds not tuned on (4, 33, 55, 90)
+  // 0.034–0.048 and 0.064–0.077 px. The bar of 0.05 px is met on light skin only: dark skin's texture is
+  // closer to the noise (each frame's error is its own, not the reference's), and its glare leaves 5 of the 9 patches.
+  for (const auto& [tone, texture_seed, bound] : {std::tuple<std::string, std::uint32_t, double>{"light", 7, 0.05}, {"dark", 8, 0.10}}) {
     const SkinParameters skin = strong_skin(tone, texture_seed);
     const MotionRegistration probe(v.size(), v.roi, {}, v.seen);
     // One press in each patch in turn, then presses in all of them at once.
@@ -152,9 +153,10 @@ TEST(Registration, RecoversSimulatedDriftTremorAndRotation) {
     const char* name;
     double drift, tremor, rotation_deg, bound;
   };
-  // Measured: 0.037, 0.034 and 0.091 px (the turn's own uncertainty at the roi's corners: the bar
-  // of 0.05 px is not met for the rotation yet).
-  for (const Case& c : {Case{"drift", 3.0, 0, 0, 0.06}, Case{"tremor", 0, 0.6, 0, 0.06}, Case{"rotation", 0, 0, 0.5, 0.12}}) {
+  // Measured: 0.040, 0.046 and 0.063 px; on texture seeds 4, 33, 55 and 90 0.025–0.063, 0.051–0.070 and
+  // 0.053–0.066 px. The bar of 0.05 px is not met on every skin: the rotation's error is the turn's own
+  // uncertainty at the roi's corners; the tremor's errors (seed 4) follow its phase.
+  for (const Case& c : {Case{"drift", 3.0, 0, 0, 0.06}, Case{"tremor", 0, 0.6, 0, 0.06}, Case{"rotation", 0, 0, 0.5, 0.08}}) {
     auto truth = [&](int k) {
       const double t = k / 30.0;
       const Vec2 shift = c.drift * t * Vec2(0.8, 0.6) + c.tremor * (std::sin(2 * std::numbers::pi * 9 * t + 1) - std::sin(1.0)) * Vec2(0.6, -0.8);
@@ -204,7 +206,9 @@ TEST(Registration, APatchWithMovingGlareIsLeftOut) {
   std::printf("moving glare in patch %zu: left out in %d of %d frames; motion error at most %.4f px\n", glared, left_out,
               static_cast<int>(results.size()), worst);
   EXPECT_EQ(left_out, static_cast<int>(results.size()));
-  EXPECT_LE(worst, 0.08);  // measured 0.043 px (the blob and the simulator's highlight leave 3–5 of the 9 patches)
+  // Measured 0.041 px; 0.043–0.080 on texture seeds 4, 33, 55 and 90 (the blob and the simulator's highlight leave
+  // 3–5 of the 9 patches).
+  EXPECT_LE(worst, 0.08);
 }
 
 TEST(Registration, RefusesBadOptions) {

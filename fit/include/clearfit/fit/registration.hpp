@@ -30,9 +30,9 @@
 // each weighted by its information (inverse covariance, shared with the patches it
 // overlaps), by iteratively reweighted least squares with Tukey's biweight on the
 // residuals' Mahalanobis norms: a patch that blanching, glare or a sliding
-// fold disturbs more than the others is rejected. A turn and scale within
-// `turn_significance` standard errors (their covariance from the patches'), or with fewer
-// than six patches kept, are dropped (translation only: the weighted mean). When the turn or
+// fold disturbs more than the others is rejected. A turn, and a scale, within
+// `turn_significance` of its own standard error (their covariance from the patches') is dropped
+// and the rest fitted again; with fewer than six patches kept both are (translation only: the weighted mean). When the turn or
 // scale changed the patches' sampling, they are measured again with it.
 #include <clearfit/geometry/mesh.hpp>
 #include <opencv2/core.hpp>
@@ -75,7 +75,8 @@ struct RegistrationOptions {
   /// less texture than this: their power above the noise over the noise's, at frequencies up to max_frequency
   /// (measured: textureless skin −0.2 to 1.8, its camera highlight the most; light skin 1.4–3.5). Otherwise it is lost.
   double min_texture = 1.0;
-  /// A fitted turn and scale smaller than this many of their standard errors are dropped (translation only).
+  /// A fitted turn, and a fitted scale, smaller than this many of its own standard errors is dropped (the turn alone
+  /// tested with the scale, they let a noisy scale through with a real turn: 0.5° read 0.07–0.10 px off, 0.05–0.07 tested alone).
   double turn_significance = 3.0;
   void validate() const;            ///< throws std::invalid_argument naming the field
 };
@@ -158,10 +159,11 @@ class MotionRegistration {
     int count = 0;                  ///< frames in `sum`
     cv::Mat t, tx, ty;              ///< zero-mean average and its gradients (area size), 0 off the skin
     cv::Mat jx, jy;                 ///< the gradients of the average with its noise filtered out (wiener()): the Jacobian
+    cv::Mat tf;                     ///< that filtered average, zero-mean (area size), 0 off the skin
     cv::Mat weight;                 ///< CV_8U (area size): the template's pixels that count (on the skin)
     double h[4] = {0, 0, 0, 0};     ///< Σ jx·tx, Σ jx·ty, Σ jy·tx, Σ jy·ty
     double m[3] = {0, 0, 0};        ///< Σ jx², Σ jx·jy, Σ jy²
-    double tt = 0, pixels = 0;      ///< Σ t², and the pixels that count (weight)
+    double tt = 0, ff = 0, pixels = 0;  ///< Σ t², Σ tf², and the pixels that count (weight)
     double texture = 0;             ///< the first frame's texture against its noise (RegistrationOptions::min_texture)
     bool usable = false;
   };
