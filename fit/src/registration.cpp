@@ -617,14 +617,18 @@ void MotionRegistration::refresh(Patch& p) const {
     gx = gx(in).clone(), gy = gy(in).clone();
     gx.setTo(0, off), gy.setTo(0, off);
   };
-  p.t = avg(in) - cv::mean(avg(in), p.weight)[0];
-  p.t.setTo(0, off);
+  // `m` over the template, its mean over the skin taken out, 0 off the skin.
+  auto zero_mean = [&](const cv::Mat& m) {
+    cv::Mat z = m(in) - cv::mean(m(in), p.weight)[0];
+    z.setTo(0, off);
+    return z;
+  };
+  p.t = zero_mean(avg);
   gradient(avg, p.tx, p.ty);
   double texture = 0;
   const cv::Mat filtered = wiener(avg, noise, options_.max_frequency, &texture);
   gradient(filtered, p.jx, p.jy);
-  p.tf = filtered(in) - cv::mean(filtered(in), p.weight)[0];
-  p.tf.setTo(0, off);
+  p.tf = zero_mean(filtered);
   p.ff = p.tf.dot(p.tf);
   if (p.count == 1) p.texture = texture;
   p.h[0] = p.jx.dot(p.tx), p.h[1] = p.jx.dot(p.ty), p.h[2] = p.jy.dot(p.tx), p.h[3] = p.jy.dot(p.ty);
