@@ -463,6 +463,31 @@ bool measure_phase_shift(GapUv& uv_at, Samples& s, const ChartField& worn_textur
   return e.phase_shift_measured;
 }
 
+/// The shift could not be measured at the best gap of the unshifted textures: a move between the phases larger
+/// than the gap's own moves the unshifted curve's minimum far off (measured: the sample's scene at a quarter of its
+/// resolution, 1.7 px of move, read its best match at 0 mm for a 1 mm gap, where the shift's fit found no minimum).
+/// So the shift is measured at every other gap of the coarse grid and the gap whose shifted textures match best
+/// (the coarse curve's least cost) is kept, with its shift; none measured: the samples are left unmoved.
+std::pair<int, double> shift_over_the_range(GapUv& uv_at, Samples& s, const ChartField& worn_texture, const ChartField& worn_log,
+                                            const GapSearchOptions& o, GapEstimate& e) {
+  GapEstimate trial = e, kept;
+  double least = std::numeric_limits<double>::infinity();
+  for (double g = 0; g <= o.max_mm + 1e-9; g += 2 * o.step_mm) {
+    if (!measure_phase_shift(uv_at, s, worn_texture, worn_log, g, o, trial)) continue;
+    coarse_search(uv_at, s, worn_texture, o, trial);
+    for (const auto& c : trial.curve)
+      if (c.second < least) least = c.second, kept = trial;
+  }
+  if (!kept.phase_shift_measured) {
+    move_samples(s, Vec2::Zero());
+    e.phase_shift_measured = false, e.phase_shift_px = e.phase_shift_sigma_px = Vec2::Zero();
+    return coarse_search(uv_at, s, worn_texture, o, e);
+  }
+  e.phase_shift_measured = true, e.phase_shift_px = kept.phase_shift_px, e.phase_shift_sigma_px = kept.phase_shift_sigma_px;
+  move_samples(s, e.phase_shift_px);
+  return coarse_search(uv_at, s, worn_texture, o, e);
+}
+
 Samples samples_for(const BaselineRays& rays, const PhaseAverage& baseline, const GapSearchOptions& o) {
   return baseline_samples(rays, baseline, o.highpass_mm * pixels_per_mm(rays, 0.5 * o.max_mm), 0.5 * o.max_mm);
 }
@@ -478,9 +503,14 @@ GapEstimate estimate_gap(const BaselineRays& rays, const PhaseAverage& baseline,
   GapUv uv_at(rays, s);
   // 1. Coarse; with the motion between the phases measured at its best gap and taken out, again.
   auto [best, centre] = coarse_search(uv_at, s, worn_texture, o, e);
-  if (o.max_shift_px > 0)
-    for (int pass = 0; pass < 2; ++pass)
-      if (measure_phase_shift(uv_at, s, worn_texture, worn_log, centre, o, e)) std::tie(best, centre) = coarse_search(uv_at, s, worn_texture, o, e);
+  if (o.max_shift_px > 0) {
+    if (!measure_phase_shift(uv_at, s, worn_texture, worn_log, centre, o, e))
+      std::tie(best, centre) = shift_over_the_range(uv_at, s, worn_texture, worn_log, o, e);
+    else
+      std::tie(best, centre) = coarse_search(uv_at, s, worn_texture, o, e);
+    if (e.phase_shift_measured && measure_phase_shift(uv_at, s, worn_texture, worn_log, centre, o, e))
+      std::tie(best, centre) = coarse_search(uv_at, s, worn_texture, o, e);
+  }
   const int last = static_cast<int>(e.curve.size()) - 1;
   std::vector<double> cost;
   for (const auto& c : e.curve) cost.push_back(c.second);
