@@ -129,6 +129,8 @@ Run add_assess(CLI::App& app) {
       try {
         const auto result = reports::write_report_html(staged.path());
         for (const auto& n : result.notes) std::cerr << "clearfit: note: " << n << "\n";
+      } catch (const OutputError&) {
+        throw;  // the disk refused it: the run's error, not a missing optional page
       } catch (const InputError& e) {
         html_note = std::string("report.html not written: ") + e.what();
       }

@@ -3,6 +3,8 @@
 #include <clearfit/output_folder.hpp>
 
 #include <atomic>
+#include <cerrno>
+#include <cstring>
 #include <fstream>
 #include <unistd.h>
 
@@ -30,7 +32,7 @@ void write_path_atomically(const std::filesystem::path& path,
     pause_point("file-written");
     std::error_code ec;
     std::filesystem::rename(tmp, path, ec);
-    if (ec) throw InputError(path.string(), "", "cannot write the output: " + ec.message());
+    if (ec) throw OutputError(path.string(), "", "cannot write the output: " + ec.message());
   } catch (...) {
     std::error_code ignored;
     std::filesystem::remove(tmp, ignored);
@@ -41,10 +43,15 @@ void write_path_atomically(const std::filesystem::path& path,
 void write_file_atomically(const std::filesystem::path& path, const std::function<void(std::ostream&)>& write) {
   write_path_atomically(path, [&](const std::filesystem::path& tmp) {
     std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    if (!out) throw InputError(path.string(), "", "cannot create the output file", "check the folder's permissions");
+    if (!out) throw OutputError(path.string(), "", "cannot create the output file", "check the folder's permissions");
+    errno = 0;
     write(out);
     out.flush();
-    if (!out) throw InputError(path.string(), "", "writing failed (disk full?)");
+    if (!out) {
+      // The stream keeps no reason; the failed write(2) left it in errno (ENOSPC, EFBIG, EDQUOT, EIO).
+      const std::string why = errno != 0 ? std::strerror(errno) : "the stream failed";
+      throw OutputError(path.string(), "", "writing failed: " + why, "free space on its disk or write the outputs elsewhere");
+    }
   });
 }
 

@@ -553,7 +553,7 @@ struct CaptureWriter::Libav {
     if (!h264) av_dict_set(&muxer, "write_crc32", "0", 0);  // a checksum over every byte written, which nothing reads
     const int written = avformat_write_header(format, &muxer);
     av_dict_free(&muxer);
-    if (written < 0) fail("the header cannot be written");
+    if (written < 0) fail_writing("the header cannot be written", written);
     header = true;
     frame = av_frame_alloc();
     frame->format = codec->pix_fmt;
@@ -564,6 +564,12 @@ struct CaptureWriter::Libav {
   }
   [[noreturn]] void fail(const std::string& what) const {
     throw InputError(name, "", "cannot write " + codec_name + ": " + what, "pick another simulation.format (png always works)");
+  }
+  /// A write that FFmpeg's I/O refused (`err`, an AVERROR: no space, a file size limit): the file system's reason.
+  [[noreturn]] void fail_writing(const std::string& what, int err) const {
+    char reason[AV_ERROR_MAX_STRING_SIZE] = {};
+    av_strerror(err, reason, sizeof reason);
+    throw OutputError(name, "", "cannot write " + codec_name + ": " + what + ": " + reason, "free space on its disk or give another --out");
   }
   /// libx264's settings and the BGR to YUV conversion.
   void set_h264(double fps, int crf, AVDictionary*& opts) {
@@ -594,7 +600,7 @@ struct CaptureWriter::Libav {
       if (packet->duration == 0) packet->duration = 1;  // one frame (HuffYUV leaves it unset)
       av_packet_rescale_ts(packet, codec->time_base, stream->time_base);
       packet->stream_index = stream->index;
-      if (av_interleaved_write_frame(format, packet) < 0) fail("a packet cannot be written (disk full?)");
+      if (const int err = av_interleaved_write_frame(format, packet); err < 0) fail_writing("a packet cannot be written", err);
     }
   }
   void write(const cv::Mat& bgr) {
@@ -617,10 +623,32 @@ struct CaptureWriter::Libav {
   void finish() {
     avcodec_send_frame(codec, nullptr);
     drain();
-    if (av_write_trailer(format) < 0) fail("the file cannot be finished");
-    avio_closep(&format->pb);
+    if (const int err = av_write_trailer(format); err < 0) fail_writing("the file cannot be finished", err);
+    if (const int err = avio_closep(&format->pb); err < 0) fail_writing("the file cannot be closed", err);
   }
 };
+
+namespace {
+/// The video packets `file` holds, demuxed (not decoded); -1 when it does not open. OpenCV's writer reports no
+/// failed write (a full disk left an FFV1 file cut short and the run succeeded), so its files are counted back.
+int video_packets(const std::filesystem::path& file) {
+  AVFormatContext* f = nullptr;
+  if (avformat_open_input(&f, file.string().c_str(), nullptr, nullptr) < 0) return -1;
+  int n = -1;
+  if (avformat_find_stream_info(f, nullptr) >= 0) {
+    const int video = av_find_best_stream(f, AVMEDIA_TYPE_VIDEO, -1, -1, nullptr, 0);
+    AVPacket* p = av_packet_alloc();
+    n = 0;
+    while (video >= 0 && av_read_frame(f, p) >= 0) {
+      n += p->stream_index == video && !(p->flags & AV_PKT_FLAG_CORRUPT);
+      av_packet_unref(p);
+    }
+    av_packet_free(&p);
+  }
+  avformat_close_input(&f);
+  return n;
+}
+}  // namespace
 
 CaptureWriter::CaptureWriter(const std::filesystem::path& path, VideoFormat format, double fps, cv::Size size, int crf)
     : path_(path), format_(format) {
@@ -644,7 +672,7 @@ CaptureWriter::CaptureWriter(const std::filesystem::path& path, VideoFormat form
   const int api = format == VideoFormat::mjpg ? cv::CAP_OPENCV_MJPEG : cv::CAP_FFMPEG;
   if (!video_->writer.open(temp_.string(), api, fourcc, fps, size, params))
     throw InputError(path.string(), "", "OpenCV cannot open a " + to_string(format) + " video writer for it",
-                     "pick another simulation.video.format (png always works)");
+                     "pick another simulation.format (png always works)");
 }
 
 CaptureWriter::~CaptureWriter() {
@@ -660,7 +688,7 @@ void CaptureWriter::write(const cv::Mat& frame) {
     char name[32];
     std::snprintf(name, sizeof name, "frame_%05d.png", frames_);
     if (!cv::imwrite((temp_ / name).string(), frame, {cv::IMWRITE_PNG_COMPRESSION, 1}))
-      throw InputError((path_ / name).string(), "", "cannot write the frame");
+      throw OutputError((path_ / name).string(), "", "cannot write the frame", "free space on its disk or give another --out");
   } else if (libav_) {
     libav_->write(frame);
   } else {
@@ -670,7 +698,12 @@ void CaptureWriter::write(const cv::Mat& frame) {
 }
 
 void CaptureWriter::finish() {
-  if (video_) video_->writer.release();
+  if (video_) {
+    video_->writer.release();
+    if (const int n = video_packets(temp_); n != frames_)
+      throw OutputError(path_.string(), "", "the video holds " + std::to_string(std::max(n, 0)) + " of its " + std::to_string(frames_) +
+                       " frames: a write failed (no space, a file size limit)", "free space on its disk or give another --out");
+  }
   if (libav_) libav_->finish(), libav_.reset();
   std::error_code ec;
   if (std::filesystem::exists(path_)) std::filesystem::remove_all(path_, ec);

@@ -150,6 +150,57 @@ TEST_F(CrashSafety, SimulateAndAssessAlwaysLeaveAWholeFolder) {
   kill_everywhere(assess_args, assess_args, "out", kFolderStages, assess_s, 4, out_complete);
 }
 
+/// `args` run with every file it writes limited to `blocks` (the shell's `ulimit -f`; SIGXFSZ ignored, so a write
+/// past the limit fails as on a full disk, with EFBIG in place of ENOSPC).
+RunResult run_with_file_limit(const std::vector<std::string>& args, const fs::path& workdir, const fs::path& capture, long blocks) {
+  std::vector<std::string> sh{"-c", "trap '' XFSZ; ulimit -f " + std::to_string(blocks) + "; exec \"$0\" \"$@\"", clearfit_exe().string()};
+  sh.insert(sh.end(), args.begin(), args.end());
+  return run_clearfit(sh, workdir, capture, 120, "/bin/sh");
+}
+
+/// The largest file under `dir`, bytes.
+std::uintmax_t largest_file(const fs::path& dir) {
+  std::uintmax_t most = 0;
+  for (const auto& e : fs::recursive_directory_iterator(dir))
+    if (e.is_regular_file()) most = std::max(most, e.file_size());
+  return most;
+}
+
+// A write that fails (a full disk; here a file size limit, which fails the same writes) is an error naming the
+// file and the reason, exit 2, and the previous output stays whole in place, with nothing left beside it. FFV1
+// and MJPG are written by OpenCV's writer, which reports no failed write: a cut-short FFV1 file once ended a run
+// with exit 0 (its videos 6 MB each, 29 of their 120 frames), so its files are counted back.
+TEST_F(CrashSafety, AFullDiskIsAClearErrorAndTheOldOutputStays) {
+  const std::vector<std::string> sim_old{"simulate", "scene.yaml", "--out", "sim", "--seed", "3", "--quiet"};
+  timed_run(sim_old);
+  const auto sim_listing = listing(work() / "sim");
+  const long half = static_cast<long>(largest_file(work() / "sim") / 2048);  // blocks of 512 or 1024 bytes: under the largest file
+  for (const std::string format : {"huffyuv", "ffv1", "png"})
+    for (const long blocks : {1L, half}) {
+      SCOPED_TRACE(format + ", files limited to " + std::to_string(blocks) + " blocks");
+      const RunResult r = run_with_file_limit({"simulate", "scene.yaml", "--out", "sim", "--seed", "4", "--quiet", "--format", format},
+                                              work(), root() / "capture", blocks);
+      EXPECT_EQ(r.exit_code, 2) << r;
+      EXPECT_NE(r.err.find("free space on its disk"), std::string::npos) << r;
+      EXPECT_NE(r.err.find("sim"), std::string::npos) << r;
+      EXPECT_EQ(listing(work() / "sim"), sim_listing);
+      EXPECT_EQ(leftovers(work(), "sim"), std::vector<std::string>{});
+    }
+  const std::vector<std::string> assess_args{"assess", "scene.yaml", "--quiet"};
+  timed_run(assess_args);
+  const auto out_listing = listing(work() / "out");
+  const long out_half = static_cast<long>(largest_file(work() / "out") / 2048);
+  for (const long blocks : {1L, out_half}) {
+    SCOPED_TRACE("assess, files limited to " + std::to_string(blocks) + " blocks");
+    const RunResult r = run_with_file_limit(assess_args, work(), root() / "capture", blocks);
+    EXPECT_EQ(r.exit_code, 2) << r;
+    EXPECT_NE(r.err.find("writing failed: File too large"), std::string::npos) << r;
+    EXPECT_NE(r.err.find("free space on its disk"), std::string::npos) << r;
+    EXPECT_EQ(listing(work() / "out"), out_listing);
+    EXPECT_EQ(leftovers(work(), "out"), std::vector<std::string>{});
+  }
+}
+
 TEST_F(CrashSafety, CalibrateAlwaysLeavesAWholeModel) {
   const CalibrationGrid grid{8, 6, 20};
   SyntheticViewsOptions o;

@@ -44,4 +44,12 @@ class InputError : public std::runtime_error {
   std::string file_, element_, problem_, hint_;
 };
 
+/// An output that could not be written (no space, a file size limit, a folder that refuses it): always the run's
+/// error (exit 2, as bad input: the user must act), never downgraded to a note or a warning as an optional
+/// output's own problems are.
+class OutputError : public InputError {
+ public:
+  using InputError::InputError;
+};
+
 }  // namespace clearfit
