@@ -334,9 +334,10 @@ const std::vector<float>& blue_green_ratio_table() {
 
 }  // namespace
 
-double glare_fraction(const cv::Mat& bgr, const cv::Rect& patch) {
-  const cv::Rect r = patch & cv::Rect(0, 0, bgr.cols, bgr.rows);
-  if (r.area() == 0) return 0;
+cv::Mat glare_pixels(const cv::Mat& bgr, const cv::Rect& patch_in, const cv::Rect& region_in) {
+  const cv::Rect image(0, 0, bgr.cols, bgr.rows), r = patch_in & image, region = region_in & image;
+  cv::Mat out = cv::Mat::zeros(region_in.size(), CV_8U);
+  if (r.area() == 0 || region.area() == 0) return out;
   const float* lut = srgb::to_linear_table8();
   const std::vector<float>& ratio_of = blue_green_ratio_table();
   // The medians (the value of rank n/2) from histograms, exactly: green is an increasing function
@@ -364,15 +365,21 @@ double glare_fraction(const cv::Mat& bgr, const cv::Rect& patch) {
   const double c = ratio_of[pairs[i]], g = lut[green_code];
   for (const int k : pairs) pair_count[k] = 0;
   const double whiter = c + 0.5 * (1 - c);
-  long long n = 0;
-  for (int y = r.y; y < r.br().y; ++y) {
+  for (int y = region.y; y < region.br().y; ++y) {
     const auto* row = bgr.ptr<cv::Vec3b>(y);
-    for (int x = r.x; x < r.br().x; ++x) {
+    auto* dst = out.ptr<std::uint8_t>(y - region_in.y) - region_in.x;
+    for (int x = region.x; x < region.br().x; ++x) {
       const cv::Vec3b p = row[x];
-      n += std::max({p[0], p[1], p[2]}) >= 250 || (ratio_of[p[0] * 256 + p[1]] >= whiter && lut[p[1]] >= 1.2 * g);
+      if (std::max({p[0], p[1], p[2]}) >= 250 || (ratio_of[p[0] * 256 + p[1]] >= whiter && lut[p[1]] >= 1.2 * g)) dst[x] = 255;
     }
   }
-  return static_cast<double>(n) / r.area();
+  return out;
+}
+
+double glare_fraction(const cv::Mat& bgr, const cv::Rect& patch) {
+  const cv::Rect r = patch & cv::Rect(0, 0, bgr.cols, bgr.rows);
+  if (r.area() == 0) return 0;
+  return cv::countNonZero(glare_pixels(bgr, r, r)) / static_cast<double>(r.area());
 }
 
 std::vector<std::uint8_t> glare_texels(const GlareMask& glare, const InverseMap& inv, const Vec2& shift) {

@@ -232,6 +232,7 @@ void RegistrationOptions::validate() const {
   rule(spline_order == 3 || spline_order == 5, "spline_order", "must be 3 or 5");
   rule(reference_frames >= 1 && reference_frames <= 64, "reference_frames", "must be 1..64");
   rule(max_glare_fraction >= 0 && max_glare_fraction <= 1, "max_glare_fraction", "must be in [0, 1]");
+  rule(glare_margin_px >= 0 && glare_margin_px <= 16, "glare_margin_px", "must be 0..16");
   rule(std::isfinite(tukey_c) && tukey_c > 1, "tukey_c", "must be > 1");
   rule(std::isfinite(min_sigma_px) && min_sigma_px > 0, "min_sigma_px", "must be > 0");
   rule(std::isfinite(max_sigma_px) && max_sigma_px > min_sigma_px, "max_sigma_px", "must be > min_sigma_px");
@@ -308,12 +309,23 @@ MotionRegistration::MotionRegistration(cv::Size image, const cv::Rect& roi, cons
 const MotionRegistration::SkinBlur& MotionRegistration::skin_blur(const cv::Rect& region, cv::Point shift, const cv::Rect& crop,
                                                                  SkinBlur& cache) const {
   if (cache.region == region && cache.shift == shift && cache.crop == crop && !cache.skin.empty()) return cache;
-  // The skin in this frame: the seen mask moved with the frame (pixels off the image: none).
+  cache = skin_terms(region, shift, crop, {});
+  return cache;
+}
+
+MotionRegistration::SkinBlur MotionRegistration::skin_terms(const cv::Rect& region, cv::Point shift, const cv::Rect& crop,
+                                                            const cv::Mat& glare) const {
+  // The skin in this frame: the seen mask moved with the frame (pixels off the image: none; no mask: all).
   SkinBlur fresh;  // new buffers: Regions handed out earlier keep theirs
   fresh.region = region, fresh.shift = shift, fresh.crop = crop;
-  fresh.skin = cv::Mat::zeros(region.size(), CV_32F);
-  const cv::Rect from = (region - shift) & cv::Rect(0, 0, seen_.cols, seen_.rows);
-  if (from.area() > 0) seen_(from).convertTo(fresh.skin(from + shift - region.tl()), CV_32F, 1.0 / 255);
+  if (seen_.empty()) {
+    fresh.skin = cv::Mat(region.size(), CV_32F, cv::Scalar(1));
+  } else {
+    fresh.skin = cv::Mat::zeros(region.size(), CV_32F);
+    const cv::Rect from = (region - shift) & cv::Rect(0, 0, seen_.cols, seen_.rows);
+    if (from.area() > 0) seen_(from).convertTo(fresh.skin(from + shift - region.tl()), CV_32F, 1.0 / 255);
+  }
+  if (!glare.empty()) fresh.skin.setTo(0, glare);
   cv::Mat mask = fresh.skin, mask_low;
   smooth(mask);
   // Only the crop is blurred; its support is read from the whole mask (as blurring all of it and cropping).
@@ -322,8 +334,7 @@ const MotionRegistration::SkinBlur& MotionRegistration::skin_blur(const cv::Rect
   fresh.low_div = cv::max(mask_low, 1e-3f);
   fresh.on_skin = mask(crop) > 0.99f;
   fresh.off_skin = mask(crop) <= 0.f;
-  cache = std::move(fresh);
-  return cache;
+  return fresh;
 }
 
 void MotionRegistration::smooth(cv::Mat& m) const {
@@ -332,7 +343,7 @@ void MotionRegistration::smooth(cv::Mat& m) const {
 }
 
 MotionRegistration::Region MotionRegistration::filtered(const cv::Mat& bgr, const cv::Rect& area_in, cv::Point shift,
-                                                        SkinBlur& cache) const {
+                                                        SkinBlur& cache, const cv::Rect& patch) const {
   Region out;
   const int ds = options_.downsample;
   const cv::Rect image_reg(0, 0, bgr.cols / ds, bgr.rows / ds);
@@ -341,13 +352,29 @@ MotionRegistration::Region MotionRegistration::filtered(const cv::Mat& bgr, cons
   // Full-resolution region: the area plus the filters' support (clipped to the image; even for pyrDown).
   cv::Rect region(ds * (area.x - border_), ds * (area.y - border_), ds * (area.width + 2 * border_), ds * (area.height + 2 * border_));
   region &= cv::Rect(0, 0, image_reg.width * ds, image_reg.height * ds);
+  // Glare and its margin, where the fit reads (the area): off the skin in this frame; the patch left out when its
+  // template area is mostly that.
+  cv::Mat glare;
+  const cv::Rect read_area = cv::Rect(ds * area.x, ds * area.y, ds * area.width, ds * area.height) & region;
+  const cv::Mat found = glare_pixels(bgr, patch, read_area);
+  if (cv::countNonZero(found) > 0) {
+    glare = cv::Mat::zeros(region.size(), CV_8U);
+    found.copyTo(glare(read_area - region.tl()));
+    const int m = ds * options_.glare_margin_px;
+    if (m > 0) cv::dilate(glare, glare, cv::getStructuringElement(cv::MORPH_ELLIPSE, cv::Size(2 * m + 1, 2 * m + 1)));
+    const cv::Rect in = (patch & region) - region.tl();
+    if (cv::countNonZero(glare(in)) > options_.max_glare_fraction * patch.area()) {
+      out.glare = true;
+      return out;
+    }
+  }
   cv::Mat full = registered_value(bgr, region, options_.green_ratio);
   const cv::Rect crop = area - region.tl() / ds;  // the area in the (smoothed) region
   out.origin = area.tl();
   // The high-pass is read over the crop only; the Gaussian's support comes from the whole region
   // (OpenCV reads a submatrix's surroundings from its parent), so the crop is as if all were blurred.
   cv::Mat low;
-  if (seen_.empty()) {
+  if (seen_.empty() && glare.empty()) {
     smooth(full);
     cv::GaussianBlur(full(crop), low, cv::Size(), options_.highpass_sigma_px, 0, cv::BORDER_REPLICATE);
     out.f = full(crop) - low;
@@ -355,13 +382,22 @@ MotionRegistration::Region MotionRegistration::filtered(const cv::Mat& bgr, cons
   }
   // Normalised convolution: the skin's own smoothing, so what lies beyond its edge does not leak in.
   // The skin's terms change only when the region or the frame's integer shift does (cached per patch).
-  const SkinBlur& skin = skin_blur(region, shift, crop, cache);
+  // Glare's terms are the frame's own (not cached).
+  SkinBlur own;
+  if (!glare.empty()) own = skin_terms(region, shift, crop, glare);
+  const SkinBlur& skin = glare.empty() ? skin_blur(region, shift, crop, cache) : own;
   cv::Mat reg = full.mul(skin.skin);
   smooth(reg);
   cv::GaussianBlur(reg(crop), low, cv::Size(), options_.highpass_sigma_px, 0, cv::BORDER_REPLICATE);
   out.f = reg(crop) / skin.mask_div - low / skin.low_div;
   out.f.setTo(0, skin.off_skin);  // off the skin: the high-pass's mean (a step there would ring through the splines)
   out.skin = skin.on_skin;
+  if (!glare.empty()) {
+    cv::Mat g;
+    glare.convertTo(g, CV_32F);
+    smooth(g);
+    out.glare_mask = g(crop) > 0.f;
+  }
   return out;
 }
 
@@ -402,12 +438,8 @@ MotionRegistration::Regions MotionRegistration::read(const cv::Mat& bgr, const S
     const Vec2 centre(p.area.x + 0.5 * p.area.width, p.area.y + 0.5 * p.area.height), shift = expected.displacement(ds * centre) / ds;
     const cv::Point moved(static_cast<int>(std::lround(shift.x())), static_cast<int>(std::lround(shift.y())));
     const cv::Rect full_res(ds * (p.area.x + moved.x), ds * (p.area.y + moved.y), ds * p.area.width, ds * p.area.height);
-    if (glare_fraction(bgr, full_res) > options_.max_glare_fraction) {
-      g.glare = true;
-      return;
-    }
-    g = filtered(bgr, box, cv::Point(ds * moved.x, ds * moved.y), skin_blur_[k]);
-    if (g.f.empty()) return;
+    g = filtered(bgr, box, cv::Point(ds * moved.x, ds * moved.y), skin_blur_[k], full_res);
+    if (g.glare || g.f.empty()) return;
     g.coef = g.f.clone();
     SplineSampler(options_.spline_order).coefficients(g.coef);
   });
@@ -415,6 +447,17 @@ MotionRegistration::Regions MotionRegistration::read(const cv::Mat& bgr, const S
 }
 
 namespace {
+
+/// A template's sums (`s` a MotionRegistration patch or a TemplateFit): h = Σ j·∇t, m = Σ j·jᵀ, Σ t², Σ tf², the
+/// pixels that count; whether they hold a fit (a well-conditioned h, some texture).
+template <class S>
+bool fill_sums(S& s) {
+  s.h[0] = s.jx.dot(s.tx), s.h[1] = s.jx.dot(s.ty), s.h[2] = s.jy.dot(s.tx), s.h[3] = s.jy.dot(s.ty);
+  s.m[0] = s.jx.dot(s.jx), s.m[1] = s.jx.dot(s.jy), s.m[2] = s.jy.dot(s.jy);
+  s.tt = s.t.dot(s.t), s.ff = s.tf.dot(s.tf), s.pixels = cv::countNonZero(s.weight);
+  const double det = s.h[0] * s.h[3] - s.h[1] * s.h[2];
+  return std::isfinite(det) && det > 1e-12 * (s.h[0] + s.h[3]) * (s.h[0] + s.h[3]) && s.tt > 0 && s.ff > 0;
+}
 
 /// The translation (registration px) that moves a region onto a template: Gauss–Newton on the
 /// zero-mean, gain-normalised difference, the region's spline (`coef`) sampled at `base` + the
@@ -426,13 +469,30 @@ namespace {
 /// half-pixel shifts). `linear` maps a step in the template's coordinates to one in the region's.
 /// Returns false when the region runs out or the correlation is lost.
 struct TemplateFit {
-  const cv::Mat &t, &jx, &jy, &tf;
-  const double (&h)[4];
-  const double (&m)[3];
-  double tt, ff, pixels;
+  cv::Mat t, tx, ty, jx, jy, tf;
+  cv::Mat weight;  ///< CV_8U: the pixels that count
+  double h[4] = {0, 0, 0, 0};
+  double m[3] = {0, 0, 0};
+  double tt = 0, ff = 0, pixels = 0;
+  /// The fit without the pixels `off` (CV_8U, 255: left out): the template and its filtered copy zero-mean
+  /// over the rest, the Jacobian 0 on them; its sums are to be made again (fill_sums).
+  TemplateFit without(const cv::Mat& off) const {
+    TemplateFit r = *this;
+    r.weight = weight.clone();
+    r.weight.setTo(0, off);
+    const cv::Mat out = r.weight == 0;
+    auto zero_mean = [&](const cv::Mat& v) {
+      cv::Mat z = v - cv::mean(v, r.weight)[0];
+      z.setTo(0, out);
+      return z;
+    };
+    r.t = zero_mean(t), r.tf = zero_mean(tf), r.jx = jx.clone(), r.jy = jy.clone();
+    r.jx.setTo(0, out), r.jy.setTo(0, out);
+    return r;
+  }
   /// `cov`: the translation's covariance (registration px²), from the residual's variance.
   bool run(const SplineSampler& spline, const cv::Mat& coef, const cv::Mat& base_x, const cv::Mat& base_y, const Eigen::Matrix2d& linear,
-           bool uniform, int iterations, const cv::Mat& weight, Vec2& delta, double& gain, Eigen::Matrix2d& cov) const {
+           bool uniform, int iterations, Vec2& delta, double& gain, Eigen::Matrix2d& cov) const {
     cv::Mat w, e;
     const Eigen::Matrix2d hessian = (Eigen::Matrix2d() << h[0], h[1], h[2], h[3]).finished();
     for (int it = 0; it < iterations; ++it) {
@@ -492,9 +552,14 @@ RegistrationResult MotionRegistration::solve(const Regions& regions, const Simil
       if (!p.usable || regions[k].f.empty()) return;
       cv::Mat bx, by;
       base_maps(k, regions[k].origin, s, 0, bx, by);
-      const TemplateFit f{p.t, p.jx, p.jy, p.tf, p.h, p.m, p.tt, p.ff, p.pixels};
+      TemplateFit f{p.t, p.tx, p.ty, p.jx, p.jy, p.tf, p.weight, {p.h[0], p.h[1], p.h[2], p.h[3]}, {p.m[0], p.m[1], p.m[2]}, p.tt, p.ff, p.pixels};
+      // The frame's glare (with the gradients' reach) left out of this frame's fit: its sums over the rest.
+      if (!regions[k].glare_mask.empty()) {
+        f = f.without(glare_reach(regions[k], bx, by));
+        if (!fill_sums(f)) return;
+      }
       Vec2 d = Vec2::Zero();
-      if (!f.run(spline, regions[k].coef, bx, by, linear, uniform(k, s), options_.iterations, p.weight, d, gain[k], cov[k]) || d.norm() >= 4)
+      if (!f.run(spline, regions[k].coef, bx, by, linear, uniform(k, s), options_.iterations, d, gain[k], cov[k]) || d.norm() >= 4)
         return;  // lost
       // Found, but not to max_sigma_px: no texture this frame can be registered by (its noise alone pulled it).
       if (ds * std::sqrt(std::max(cov[k](0, 0), cov[k](1, 1))) > options_.max_sigma_px) ok[k] = 2;
@@ -570,14 +635,25 @@ bool MotionRegistration::uniform(std::size_t k, const Similarity& m) const {
   return (std::abs(m.a) + std::abs(m.b)) * options_.downsample * 0.5 * (patches_[k].area.width + patches_[k].area.height) < 0.01;
 }
 
-std::vector<cv::Mat> MotionRegistration::warp_back(const Regions& regions, const Similarity& motion, const std::vector<std::uint8_t>& keep) const {
+cv::Mat MotionRegistration::glare_reach(const Region& region, const cv::Mat& bx, const cv::Mat& by) const {
+  cv::Mat off;
+  cv::remap(region.glare_mask, off, bx, by, cv::INTER_NEAREST, cv::BORDER_CONSTANT, cv::Scalar(0));
+  cv::dilate(off, off, cv::getStructuringElement(cv::MORPH_RECT, cv::Size(2 * kApron + 3, 2 * kApron + 3)));
+  return off;
+}
+
+std::vector<cv::Mat> MotionRegistration::warp_back(const Regions& regions, const Similarity& motion, const std::vector<std::uint8_t>& keep,
+                                                   std::vector<cv::Mat>* glare) const {
   const SplineSampler spline(options_.spline_order);
   std::vector<cv::Mat> warped(patches_.size());
+  if (glare) glare->assign(patches_.size(), cv::Mat());
   tbb::parallel_for(std::size_t(0), patches_.size(), [&](std::size_t k) {
     if (k >= keep.size() || !keep[k] || regions[k].coef.empty()) return;
     cv::Mat bx, by, w;
     base_maps(k, regions[k].origin, motion, kApron, bx, by);
     if (!spline.sample(regions[k].coef, bx, by, 0, 0, uniform(k, motion), w)) return;
+    const cv::Rect in(kApron, kApron, patches_[k].area.width, patches_[k].area.height);
+    if (glare && !regions[k].glare_mask.empty()) (*glare)[k] = glare_reach(regions[k], bx, by)(in).clone();
     // Not divided by the patch's gain: in logarithms the texture's contrast does not change with the light,
     // and a gain read against a noisy average is biased low (dividing by it weighted later frames' noise up).
     warped[k] = w - cv::mean(w)[0];
@@ -585,10 +661,14 @@ std::vector<cv::Mat> MotionRegistration::warp_back(const Regions& regions, const
   return warped;
 }
 
-void MotionRegistration::accumulate(const std::vector<cv::Mat>& warped) {
+void MotionRegistration::accumulate(const std::vector<cv::Mat>& warped, const std::vector<cv::Mat>* glare) {
   tbb::parallel_for(std::size_t(0), patches_.size(), [&](std::size_t k) {
     Patch& p = patches_[k];
     if (warped[k].empty()) return;
+    if (glare && !(*glare)[k].empty() && !p.weight.empty()) {  // new buffers: copies of the patch keep theirs
+      p.weight = p.weight.clone();
+      p.weight.setTo(0, (*glare)[k]);
+    }
     if (p.sum.empty()) p.sum = warped[k].clone(), p.sq = warped[k].mul(warped[k]);
     else p.sum += warped[k], p.sq += warped[k].mul(warped[k]);
     ++p.count;
@@ -629,13 +709,8 @@ void MotionRegistration::refresh(Patch& p) const {
   const cv::Mat filtered = wiener(avg, noise, options_.max_frequency, &texture);
   gradient(filtered, p.jx, p.jy);
   p.tf = zero_mean(filtered);
-  p.ff = p.tf.dot(p.tf);
   if (p.count == 1) p.texture = texture;
-  p.h[0] = p.jx.dot(p.tx), p.h[1] = p.jx.dot(p.ty), p.h[2] = p.jy.dot(p.tx), p.h[3] = p.jy.dot(p.ty);
-  p.m[0] = p.jx.dot(p.jx), p.m[1] = p.jx.dot(p.jy), p.m[2] = p.jy.dot(p.jy);
-  p.tt = p.t.dot(p.t), p.pixels = cv::countNonZero(p.weight);
-  const double det = p.h[0] * p.h[3] - p.h[1] * p.h[2];
-  p.usable = std::isfinite(det) && det > 1e-12 * (p.h[0] + p.h[3]) * (p.h[0] + p.h[3]) && p.tt > 0 && p.ff > 0;
+  p.usable = fill_sums(p);
 }
 
 void MotionRegistration::restrict_to_skin(const cv::Mat& bgr) {
@@ -720,8 +795,9 @@ RegistrationResult MotionRegistration::add_to_reference(const cv::Mat& bgr, cons
   Similarity whole;
   RegistrationResult r = solve(regions, start, &whole);
   if (r.found) {
-    std::vector<cv::Mat> warped = warp_back(regions, whole, r.inlier);
-    accumulate(warped);
+    std::vector<cv::Mat> glare;
+    std::vector<cv::Mat> warped = warp_back(regions, whole, r.inlier, &glare);
+    accumulate(warped, &glare);
     ++frames_averaged_;
     kept_.push_back(std::move(regions));
     kept_warped_.push_back(std::move(warped));
@@ -767,7 +843,9 @@ std::vector<std::pair<int, RegistrationResult>> MotionRegistration::close_refere
         std::vector<std::uint8_t> keep = first[i].inlier;
         if (i == 0) keep.assign(patches_.size(), 1);
         kept_motion_[i] = relative(whole[i], whole[0]);
-        accumulate(warp_back(kept_[i], kept_motion_[i], keep));
+        std::vector<cv::Mat> glare;
+        const std::vector<cv::Mat> warped = warp_back(kept_[i], kept_motion_[i], keep, &glare);
+        accumulate(warped, &glare);
       }
   }
   for (std::size_t i = 0; i < kept_.size(); ++i) out.emplace_back(kept_call_[i], solve(kept_[i], kept_motion_[i]));

@@ -1,8 +1,8 @@
 // Motion registration (registration.hpp) on rendered skin (the simulator's
 // slab scene, 320 × 240, about 12 px/mm): strong blanching does not read as
 // motion wherever it is, simulated drift, tremor and rotation are recovered
-// against the renderer's truth, and a patch that a moving glare blob crosses
-// is left out.
+// against the renderer's truth, a moving glare blob is masked out of the patch
+// it crosses, and a patch mostly glare is left out.
 #include <clearfit/fit/contact_mechanics.hpp>
 #include <clearfit/fit/registration.hpp>
 #include <clearfit/fit/simulate.hpp>
@@ -110,10 +110,13 @@ double worst_error(const SkinView& v, MotionRegistration& reg, int count, Frame 
 
 TEST(Registration, StrongBlanchingInEveryPatchIsNotMotion) {
   const SkinView v;
-  // Measured: at most 0.033 px on light skin, 0.086 px on dark; on texture seeds not tuned on (4, 33, 55, 90)
-  // 0.034–0.048 and 0.064–0.077 px. The bar of 0.05 px is met on light skin only: dark skin's texture is
-  // closer to the noise (each frame's error is its own, not the reference's), and its glare leaves 5 of the 9 patches.
-  for (const auto& [tone, texture_seed, bound] : {std::tuple<std::string, std::uint32_t, double>{"light", 7, 0.05}, {"dark", 8, 0.10}}) {
+  // Measured: at most 0.040 px on light skin, 0.075 px on dark; on texture seeds not tuned on (4, 33, 55, 90)
+  // 0.037–0.054 and 0.055–0.077 px. The simulator's highlight is masked, so dark skin keeps its 9 patches (it was
+  // left out of 4), and light skin loses the anchor the still highlight gave it (0.033 px when it was kept; 0.035
+  // and, seed 90, 0.056 px without a highlight). The bar of 0.05 px is not met on dark skin: each frame's
+  // noise (0.018 px sd along y) and the reference's place, which is the first frame's (its own noise, 0.02 px),
+  // not the patches (9 against 5: 0.033 → 0.030 px rms, the patches overlap).
+  for (const auto& [tone, texture_seed, bound] : {std::tuple<std::string, std::uint32_t, double>{"light", 7, 0.06}, {"dark", 8, 0.09}}) {
     const SkinParameters skin = strong_skin(tone, texture_seed);
     const MotionRegistration probe(v.size(), v.roi, {}, v.seen);
     // One press in each patch in turn, then presses in all of them at once.
@@ -153,10 +156,10 @@ TEST(Registration, RecoversSimulatedDriftTremorAndRotation) {
     const char* name;
     double drift, tremor, rotation_deg, bound;
   };
-  // Measured: 0.040, 0.046 and 0.063 px; on texture seeds 4, 33, 55 and 90 0.025–0.063, 0.051–0.070 and
-  // 0.053–0.066 px. The bar of 0.05 px is not met on every skin: the rotation's error is the turn's own
+  // Measured: 0.046, 0.050 and 0.058 px; on texture seeds 4, 33, 55 and 90 0.029–0.054, 0.048–0.069 and
+  // 0.048–0.067 px. The bar of 0.05 px is not met on every skin: the rotation's error is the turn's own
   // uncertainty at the roi's corners; the tremor's errors (seed 4) follow its phase.
-  for (const Case& c : {Case{"drift", 3.0, 0, 0, 0.06}, Case{"tremor", 0, 0.6, 0, 0.06}, Case{"rotation", 0, 0, 0.5, 0.08}}) {
+  for (const Case& c : {Case{"drift", 3.0, 0, 0, 0.06}, Case{"tremor", 0, 0.6, 0, 0.06}, Case{"rotation", 0, 0, 0.5, 0.07}}) {
     auto truth = [&](int k) {
       const double t = k / 30.0;
       const Vec2 shift = c.drift * t * Vec2(0.8, 0.6) + c.tremor * (std::sin(2 * std::numbers::pi * 9 * t + 1) - std::sin(1.0)) * Vec2(0.6, -0.8);
@@ -177,38 +180,51 @@ TEST(Registration, RecoversSimulatedDriftTremorAndRotation) {
   }
 }
 
-/// A glare blob (white, 20 px) crosses one patch while the image drifts: that patch is left out
-/// in every frame it covers (and the patches overlapping it with it), and the motion stays bounded.
-TEST(Registration, APatchWithMovingGlareIsLeftOut) {
+/// A glare blob (white) crosses one patch while the image drifts. A small one (20 px) is masked: the patch
+/// stays in and its own translation follows the drift. One that covers most of the patch leaves it out.
+TEST(Registration, MovingGlareIsMaskedAndAPatchMostlyGlareIsLeftOut) {
   const SkinView v;
   const SkinParameters skin = strong_skin("light", 12);
   const auto r = pressed(v, {v.uv_at(centre_of(v.roi))}, skin, 41);
-  MotionRegistration reg(v.size(), v.roi, {}, v.seen);
   const std::size_t glared = 5;
-  const cv::Rect p = reg.patches()[glared];
   auto truth = [](int k) { return std::pair(Vec2(2.0 * k / 30.0, -1.0 * k / 30.0), 0.0); };
-  const int count = 20;
-  std::vector<RegistrationResult> results;
-  const double worst = worst_error(
-      v, reg, count,
-      [&](int k) {
-        cv::Mat img = r->render(k / 30.0, 1.0, sim::FrameMotion(truth(k).first), k);
-        if (k >= reg.options().reference_frames)  // glare once the reference is made, moving across the patch
-          cv::circle(img, cv::Point(p.x + 20 + 4 * (k % 20), p.y + p.height / 2), 10, cv::Scalar(255, 255, 255), cv::FILLED);
-        return img;
-      },
-      truth, &results);
-  int left_out = 0;
-  for (const RegistrationResult& m : results) {
-    left_out += m.glare[glared] != 0;
-    EXPECT_FALSE(m.inlier[glared]);
+  for (const bool mostly : {false, true}) {
+    MotionRegistration reg(v.size(), v.roi, {}, v.seen);
+    const cv::Rect p = reg.patches()[glared];
+    const int count = mostly ? 5 : 20, radius = mostly ? p.width * 9 / 20 : 10;
+    std::vector<RegistrationResult> results;
+    const double worst = worst_error(
+        v, reg, count,
+        [&](int k) {
+          cv::Mat img = r->render(k / 30.0, 1.0, sim::FrameMotion(truth(k).first), k);
+          if (k >= reg.options().reference_frames) {  // glare once the reference is made: moving across the patch, or over most of it
+            const cv::Point at = mostly ? cv::Point(p.x + p.width / 2, p.y + p.height / 2) : cv::Point(p.x + 20 + 4 * (k % 20), p.y + p.height / 2);
+            cv::circle(img, at, radius, cv::Scalar(255, 255, 255), cv::FILLED);
+          }
+          return img;
+        },
+        truth, &results);
+    int left_out = 0;
+    double patch_error = 0;  // the glared patch's own translation against the drift
+    for (std::size_t i = 0; i < results.size(); ++i) {
+      const RegistrationResult& m = results[i];
+      left_out += m.glare[glared] != 0;
+      if (mostly) {
+        EXPECT_FALSE(m.inlier[glared]);
+        continue;
+      }
+      const Vec2 d = m.patch_shift[glared];
+      EXPECT_TRUE(d.allFinite()) << "frame " << i;
+      if (d.allFinite()) patch_error = std::max(patch_error, (d - truth(reg.options().reference_frames + static_cast<int>(i)).first).norm());
+    }
+    std::printf("glare (%d px) in patch %zu: left out in %d of %d frames; its own translation off by at most %.4f px; motion error at "
+                "most %.4f px\n", 2 * radius, glared, left_out, static_cast<int>(results.size()), patch_error, worst);
+    EXPECT_EQ(left_out, mostly ? static_cast<int>(results.size()) : 0);
+    // Measured: the patch 0.048 px, the motion 0.042 (the large blob 0.068, over 5 frames); on texture seeds 4, 33,
+    // 55 and 90 0.056–0.065 and 0.037–0.058 (0.027–0.063).
+    EXPECT_LE(patch_error, 0.1);
+    EXPECT_LE(worst, 0.08);
   }
-  std::printf("moving glare in patch %zu: left out in %d of %d frames; motion error at most %.4f px\n", glared, left_out,
-              static_cast<int>(results.size()), worst);
-  EXPECT_EQ(left_out, static_cast<int>(results.size()));
-  // Measured 0.041 px; 0.043–0.080 on texture seeds 4, 33, 55 and 90 (the blob and the simulator's highlight leave
-  // 3–5 of the 9 patches).
-  EXPECT_LE(worst, 0.08);
 }
 
 TEST(Registration, RefusesBadOptions) {
@@ -220,6 +236,9 @@ TEST(Registration, RefusesBadOptions) {
   EXPECT_THROW(MotionRegistration(cv::Size(320, 240), cv::Rect(0, 0, 320, 240), o), std::invalid_argument);
   o = {};
   o.reference_frames = 0;
+  EXPECT_THROW(o.validate(), std::invalid_argument);
+  o = {};
+  o.glare_margin_px = -1;
   EXPECT_THROW(o.validate(), std::invalid_argument);
   EXPECT_THROW(MotionRegistration(cv::Size(320, 240), cv::Rect(400, 0, 20, 20), {}), std::invalid_argument);
 }

@@ -77,6 +77,10 @@ GlareMask detect_glare(const PhaseAverage& baseline, const PhaseAverage& worn, c
 /// as bright as the skin or brighter is found; weak glare is left to detect_glare.
 double glare_fraction(const cv::Mat& bgr, const cv::Rect& patch);
 
+/// The pixels of `region` (CV_8U, region size; 255: glare; none off the image) that glare_fraction would count,
+/// judged against the medians of `patch`.
+cv::Mat glare_pixels(const cv::Mat& bgr, const cv::Rect& patch, const cv::Rect& region);
+
 /// Per chart texel: 1 where the texel's camera pixel (plus `shift_px`) lies in the mask.
 std::vector<std::uint8_t> glare_texels(const GlareMask& glare, const InverseMap& inverse, const Vec2& shift_px);
 

@@ -9,9 +9,11 @@
 // Gaussian blur at `highpass_sigma_px` taken over the seen skin only
 // (normalised convolution), so the fall-off, slow fields and the part's edge drop out.
 //
-// Where. A grid × grid set of patches spread over the region of interest (on the skin);
-// a patch whose reference or current frame shows glare (glare_fraction) is
-// left out of that frame. The reference is the average of the first
+// Where. A grid × grid set of patches spread over the region of interest (on the skin).
+// Glare (glare_pixels, judged against the patch's medians) with a margin of `glare_margin_px` is
+// left out like what lies beyond the skin: out of the high-pass (normalised convolution) and out of
+// the fit, in that frame (and out of the template for good where a frame averaged into it has it);
+// a patch whose template area is more than `max_glare_fraction` glare is left out of that frame. The reference is the average of the first
 // `reference_frames` frames, each moved back by its measured motion; when it is closed,
 // each of them is measured again against the average of the others (its own noise in
 // the average would hold it where it was put), and the average is made again with those
@@ -63,7 +65,11 @@ struct RegistrationOptions {
   /// Frames averaged into the reference (each registered against the average so far and
   /// moved back before it is added): the reference's noise falls as 1/√n.
   int reference_frames = 8;
-  double max_glare_fraction = 0.01; ///< a patch with more glare pixels than this (glare_fraction) is left out
+  /// A patch whose template area (where the frame's motion puts it) is more than this share glare, its margin
+  /// included, is left out of that frame; less glare is masked (glare_margin_px).
+  double max_glare_fraction = 0.5;
+  /// Glare's pixels (glare_pixels) grown by this, registered px, are left out of the frame's high-pass and fit.
+  int glare_margin_px = 3;
   double tukey_c = 4.685;           ///< Tukey biweight constant, in units of the residuals' robust spread (at least their standard errors)
   double min_sigma_px = 0.02;       ///< floor of a patch's standard error, px (added in quadrature: noise-free patches agree to about this)
   /// A patch whose standard error (either axis) exceeds this, px, is left out of the frame: it has no texture to be
@@ -173,7 +179,8 @@ class MotionRegistration {
     cv::Mat coef;                   ///< f's spline coefficients (SplineSampler)
     cv::Mat skin;                   ///< CV_8U: the pixels of `f` that see the skin (empty: all)
     cv::Point origin;
-    bool glare = false;
+    cv::Mat glare_mask;             ///< CV_8U, f's size: the glare with its margin, left out (empty: none)
+    bool glare = false;             ///< more glare than max_glare_fraction: left out
   };
   using Regions = std::vector<Region>;
   /// A patch's skin terms of the normalised convolution for one region and integer shift (full-resolution
@@ -190,25 +197,32 @@ class MotionRegistration {
   };
   /// `cache` when it holds these region, shift and crop, else `cache` refilled with them.
   const SkinBlur& skin_blur(const cv::Rect& region, cv::Point shift, const cv::Rect& crop, SkinBlur& cache) const;
+  /// Those terms made afresh, the pixels of `glare` (CV_8U, region size; empty: none) taken off the skin.
+  SkinBlur skin_terms(const cv::Rect& region, cv::Point shift, const cv::Rect& crop, const cv::Mat& glare) const;
   /// Brings a full-resolution image to the registered resolution (pyrDown) and smooths it (smooth_sigma_px).
   void smooth(cv::Mat& m) const;
   /// Filtered image (registration resolution) over `area` (registration px, clipped to the image),
   /// the skin's high-pass taken over the skin only (the seen mask moved by `shift`, full-resolution px;
-  /// its terms from the patch's `cache`).
-  Region filtered(const cv::Mat& bgr, const cv::Rect& area, cv::Point shift, SkinBlur& cache) const;
+  /// its terms from the patch's `cache`) less its glare, found against the medians of `patch` (full-resolution px).
+  Region filtered(const cv::Mat& bgr, const cv::Rect& area, cv::Point shift, SkinBlur& cache, const cv::Rect& patch) const;
   /// Each patch's region of `bgr` where `expected` puts it, with a margin.
   Regions read(const cv::Mat& bgr, const Similarity& expected) const;
   /// The motion of the frame whose regions these are; with `whole`, that motion with its turn and
   /// scale even where they are not significant (what a frame averaged is moved back by).
   RegistrationResult solve(const Regions& regions, const Similarity& start, Similarity* whole = nullptr) const;
   /// Each kept patch's region moved back by `motion` onto its template (with the apron), zero-mean; empty where not kept.
-  std::vector<cv::Mat> warp_back(const Regions& regions, const Similarity& motion, const std::vector<std::uint8_t>& keep) const;
+  /// `glare` (optional): per patch, the template's pixels the region's glare reaches (empty: none).
+  std::vector<cv::Mat> warp_back(const Regions& regions, const Similarity& motion, const std::vector<std::uint8_t>& keep,
+                                 std::vector<cv::Mat>* glare = nullptr) const;
+  /// The template pixels that, sampled at `bx`, `by` (region px), read the region's glare, grown by the gradients' reach.
+  cv::Mat glare_reach(const Region& region, const cv::Mat& bx, const cv::Mat& by) const;
   /// Sampling positions (region px, `origin` the region's) of patch k's template plus `apron` under motion `s`.
   void base_maps(std::size_t k, cv::Point origin, const Similarity& s, int apron, cv::Mat& bx, cv::Mat& by) const;
   /// No turn or scale worth a hundredth of a pixel at the patch's corners: its samples are one grid moved.
   bool uniform(std::size_t k, const Similarity& m) const;
-  /// Adds the frame (moved back: `warped`) to the averages and refreshes the templates.
-  void accumulate(const std::vector<cv::Mat>& warped);
+  /// Adds the frame (moved back: `warped`) to the averages and refreshes the templates; `glare` (optional, per
+  /// patch, template size) is taken out of the templates' weights for good.
+  void accumulate(const std::vector<cv::Mat>& warped, const std::vector<cv::Mat>* glare = nullptr);
   /// The patch's template, its gradients and Jacobian from its sums.
   void refresh(Patch& p) const;
   cv::Size image_;
