@@ -205,6 +205,8 @@ class MotionRegistration {
   /// the skin's high-pass taken over the skin only (the seen mask moved by `shift`, full-resolution px;
   /// its terms from the patch's `cache`) less its glare, found against the medians of `patch` (full-resolution px).
   Region filtered(const cv::Mat& bgr, const cv::Rect& area, cv::Point shift, SkinBlur& cache, const cv::Rect& patch) const;
+  /// The whole registered pixels `m` moves patch k's centre by: what its skin terms are moved by (read()).
+  cv::Point whole_shift(std::size_t k, const Similarity& m) const;
   /// Each patch's region of `bgr` where `expected` puts it, with a margin.
   Regions read(const cv::Mat& bgr, const Similarity& expected) const;
   /// The motion of the frame whose regions these are; with `whole`, that motion with its turn and
