@@ -72,7 +72,14 @@ Run add_assess(CLI::App& app) {
     const LoadedPart* part = p->part.get();
     const RefractionMap& map = p->map;
     const auto& calibration = p->calibration;
-    Assessment a = assess_captures(scene, p->sources, calibration, p->options);
+    Assessment a = [&] {
+      try {
+        return assess_captures(scene, p->sources, calibration, p->options);
+      } catch (...) {
+        if (!o->quiet) std::cerr << "\n";  // the progress line it interrupts ends before the error is printed
+        throw;
+      }
+    }();
     a.warnings.insert(a.warnings.begin(), p->warnings.begin(), p->warnings.end());
     if (!o->quiet) std::cerr << "\n";
     const auto& notes = p->notes;

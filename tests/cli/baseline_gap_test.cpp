@@ -294,6 +294,10 @@ TEST_F(BaselineGapCli, BadGapsAreRefusedWithExitTwo) {
   EXPECT_NE(r.err.find("cannot be estimated"), std::string::npos) << r;
   EXPECT_NE(r.err.find("baseline.gap_mm"), std::string::npos) << r;
   EXPECT_FALSE(fs::exists(work() / "mismatch")) << "output folder left behind";
+  // Without --quiet the error starts a line of its own, not the end of the progress line it interrupts.
+  const RunResult loud = run_clearfit({"assess", "mismatch.yaml", "--no-cache", "--no-html"}, work(), root() / "capture", 120);
+  EXPECT_EQ(loud.exit_code, 2) << loud;
+  EXPECT_NE(loud.err.find("estimating the baseline's gap\nclearfit: error: "), std::string::npos) << loud;
   // Given, the gap is used as it is and reported as given.
   r = assess(caps, caps, "given", {"--baseline-gap-mm", "2"});
   ASSERT_EQ(r.exit_code, 0) << r;
