@@ -127,6 +127,7 @@ Run add_assess(CLI::App& app) {
                    {"baseline_part", to_string(sc.baseline.part)},
                    {"baseline_gap_mm", sc.baseline.gap_mm},
                    {"baseline_max_shift_px", sc.baseline.search.max_shift_px},
+                   {"baseline_gap_sigma_in_signal", sc.baseline.search.sigma_in_signal},
                    {"person", sc.calibration.person}};
     for (const auto& n : notes) std::cerr << "clearfit: note: " << n << "\n";
     ctx.run_time_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();

@@ -240,6 +240,8 @@ void BaselineSection::bind(SceneFields& f) {
   f.key("max_shift_px", search.max_shift_px, "--baseline-max-shift-px",
         "Held or absent: the largest move of the skin texture between the phases' first frames (camera or skin) measured with "
         "the gap, px (0: not measured)");
+  f.key("gap_sigma_in_signal", search.sigma_in_signal, "--no-baseline-gap-sigma",
+        "Held or absent, gap auto: do not carry the estimated gap's sigma into each texel's signal sigma and detection gate");
 }
 
 std::optional<double> BaselineSection::gap() const {

@@ -270,7 +270,7 @@ void extend_detection(const PressureCalibration& calibration, const ChartField& 
   cv::Mat1b mask(g.height, g.width, std::uint8_t{0}), detected_mask(g.height, g.width, std::uint8_t{0});
   std::vector<std::size_t> candidates;
   for (std::size_t k = 0; k < g.size(); ++k) {
-    const float y = a.signal.y.value[k], sy = a.signal.sigma_y.value[k];
+    const float y = a.signal.y.value[k], sy = static_cast<float>(detection_sigma(a, k));
     const bool detected = a.pressure_status[k] == ok;
     const bool candidate = a.pressure_status[k] == below && std::isfinite(sy) && y >= sigmas * sy;
     const int row = static_cast<int>(k / g.width), col = static_cast<int>(k % g.width);
@@ -302,6 +302,12 @@ void extend_detection(const PressureCalibration& calibration, const ChartField& 
 }
 }  // namespace
 
+double detection_sigma(const Assessment& a, std::size_t k) {
+  const double sy = a.signal.sigma_y.value[k];
+  if (k >= a.gap_signal_sigma.value.size() || !std::isfinite(a.gap_signal_sigma.value[k])) return sy;
+  return std::hypot(sy, static_cast<double>(a.gap_signal_sigma.value[k]));
+}
+
 double local_gate(double gate, double sigma_y, double typical_sigma) {
   if (!(typical_sigma > 0) || !std::isfinite(sigma_y)) return gate;
   return gate * std::max(1.0, sigma_y / typical_sigma);
@@ -328,11 +334,14 @@ std::vector<std::uint8_t> calibrated_pressure(const PressureCalibration& calibra
   // at 4.3 kPa (21 on AssessCli's wristband, 2 on LossyCli's), while the σ coverage gained 0.6 points.
   // The calibration's gate is a signal for a texel of this capture's typical noise (the median σ_y); a texel whose own
   // σ_y is larger (beside a glare mask, at the seen outline, seen obliquely) needs as much more (local_gate).
+  // Saturated texels too: beyond the calibration's range is no reason to be above a σ that reaches it (at the band's end
+  // on wristband quarter-scale seed 14 the gap's σ term was 0.1, as large as the signal of a false saturated speck).
   const double gate = calibration.detection_signal();
   for (std::size_t k = 0; k < g.size(); ++k)
-    if (a.pressure_status[k] == static_cast<std::uint8_t>(PressureStatus::ok) &&
-        !(a.signal.y.value[k] >= local_gate(gate, a.signal.sigma_y.value[k], a.signal.noise_sigma) &&
-          (!spatial_noise || a.signal.y.value[k] >= o.signal_threshold_sigmas * a.signal.sigma_y.value[k]))) {
+    if ((a.pressure_status[k] == static_cast<std::uint8_t>(PressureStatus::ok) ||
+         a.pressure_status[k] == static_cast<std::uint8_t>(PressureStatus::saturated)) &&
+        !(a.signal.y.value[k] >= local_gate(gate, detection_sigma(a, k), a.signal.noise_sigma) &&
+          (!spatial_noise || a.signal.y.value[k] >= o.signal_threshold_sigmas * detection_sigma(a, k)))) {
       a.pressure_status[k] = static_cast<std::uint8_t>(PressureStatus::below_detection);
       a.pressure_sigma.value[k] = kNaN;  // 0 kPa below detection is a bound, not an estimate
     }

@@ -88,6 +88,13 @@ json baseline_geometry_json(const BaselineGeometryReport& b) {
             {"gap_sigma_mm", num(b.gap_sigma_mm)},
             {"gap_source", b.part == BaselinePart::touching ? "none" : b.estimate ? (b.gap_estimated ? "estimated" : "unsure") : "given"},
             {"pixels_seeing_skin", b.pixels_seeing_skin}};
+  if (b.gap_estimated && b.signal_sigma_max > 0)  // carried (GapSearchOptions::sigma_in_signal)
+    j["signal_sigma_from_gap"] = {{"median", num(b.signal_sigma_median)},
+                                  {"max", num(b.signal_sigma_max)},
+                                  {"unseen_mm2", num(b.unseen_off_gap_mm2)},
+                                  {"meaning", "1-sigma of the blanching signal per texel from the gap's sigma (the signal read at the gap "
+                                              "+- sigma); in each texel's sigma and detection gate; unseen_mm2: seen at the gap but at neither "
+                                              "gap +- sigma, left unseen"}};
   if (b.part != BaselinePart::touching)
     j["phase_shift_px"] = b.phase_shift_measured ? json{{"value", {num(b.phase_shift_px.x()), num(b.phase_shift_px.y())}},
                                                         {"sigma", {num(b.phase_shift_sigma_px.x()), num(b.phase_shift_sigma_px.y())}},
@@ -379,6 +386,7 @@ json outputs_json(const Assessment& a) {
                   {"heatmap_ply", "heatmap.ply"}};
   if (a.calibrated) outputs["heatmap_signal_glb"] = "heatmap_signal.glb";
   if (a.phase_registration.applied) outputs["displacement_npy"] = "displacement.npy";
+  if (!a.gap_signal_sigma.value.empty()) outputs["signal_sigma_from_gap_npy"] = "signal_sigma_from_gap.npy";
   if (a.time.present) {
     outputs["timeline_csv"] = "timeline.csv";
     outputs["timeline_time_npy"] = "timeline_time_s.npy";
@@ -506,6 +514,10 @@ std::vector<std::string> write_assessment_outputs(const Assessment& a, const Ass
   written.push_back("pressure.npy");
   written.push_back("pressure_sigma.npy");
   written.push_back("signal.npy");
+  if (!a.gap_signal_sigma.value.empty()) {
+    write_field_npy(a.gap_signal_sigma, folder / "signal_sigma_from_gap.npy");
+    written.push_back("signal_sigma_from_gap.npy");
+  }
   if (a.phase_registration.applied) {
     // The skin's displacement from the not-worn to the worn capture: H x W x 2 (u, v) chart mm, NaN unseen.
     const ChartGrid& g = a.phase_registration.dx_mm.grid;

@@ -662,6 +662,11 @@ std::string calibration_table(const json& report) {
       what += source == "given" ? " (given)" : source == "estimated" ? " (estimated from the captures)" : " (estimate unsure)";
     }
     s += row({th("not-worn capture"), "<td data-key=\"baseline-gap\">" + what + "</td>"});
+    if (const json& t = at(b, "signal_sigma_from_gap"); t.is_object())
+      s += row({th("the gap's &sigma; in the signal"),
+                "<td data-key=\"gap-signal-sigma\">median " + num(at(t, "median"), 5) + ", at most " + num(at(t, "max"), 4) +
+                    " (in each texel's &sigma; and detection gate; largest where the part is seen obliquely); " +
+                    num(at(t, "unseen_mm2"), 2) + " mm&sup2; at the seen skin's edge, which the gap's &sigma; moves, left unseen</td>"});
   }
   if (p.is_object()) {
     s += row({th("pressure calibration"), td(text(at(p, "source")) + " (person: " + text(at(p, "person")) + ")")});

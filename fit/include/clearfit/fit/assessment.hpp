@@ -114,6 +114,9 @@ struct BaselineGeometryReport {
   Vec2 phase_shift_px = Vec2::Zero(), phase_shift_sigma_px = Vec2::Zero();
   bool phase_shift_measured = false;
   long long pixels_seeing_skin = 0;     ///< in the baseline's own map
+  /// The gap's σ in the signal over the seen texels (Assessment::gap_signal_sigma): its median and largest; 0 when not carried.
+  double signal_sigma_median = 0, signal_sigma_max = 0;
+  double unseen_off_gap_mm2 = 0;        ///< seen at the gap but at neither gap ± σ: unseen (the seen skin's edge moves across it)
   VignettingEstimate vignetting;        ///< the fall-off divided out of the comparison (own geometry only)
 };
 
@@ -203,6 +206,9 @@ struct Assessment {
   /// deblur_noise_gain), the blur's term and the position term in quadrature; inverted into pressure_sigma, and
   /// the σ of the hotspots without a calibration.
   ChartField signal_sigma;
+  /// 1-σ of the signal per texel from the estimated gap's σ (GapSearchOptions::sigma_in_signal): in signal_sigma and,
+  /// with signal.sigma_y, in the detection gate; empty when the gap was given or the baseline touches.
+  ChartField gap_signal_sigma;
   ChartField blur_effect;    ///< y − y', about ½·(skin blur² + smoothing²)·∇²y per texel (blur_effect): undone in the pressure, part of signal_sigma
   std::vector<float> vertex_pressure, vertex_signal;  ///< per mesh vertex, NaN where unseen / off the contact
   std::vector<float> vertex_pressure_sigma;  ///< 1-σ of vertex_pressure (kPa); NaN where pressure_sigma is undefined around it

@@ -114,12 +114,17 @@ ChartField signal_sigma(const BlanchingSignal& signal, const ChartField& positio
 /// `gate` itself where either σ is unknown or not positive.
 double local_gate(double gate, double sigma_y, double typical_sigma);
 
+/// The σ a texel's detection is judged by: its noise σ_y and, when the gap was estimated, the gap's term
+/// (Assessment::gap_signal_sigma) in quadrature.
+double detection_sigma(const Assessment& a, std::size_t texel);
+
 /// The signal turned into pressure through the calibration (PressureCalibration::invert of the sharpened
 /// signal, a.signal_sigma its σ): fills a.calibrated, a.pressure, a.pressure_sigma, a.pressure_status and
 /// the summary figures: below-detection and saturated fractions of the seen texels; peak and mean kPa over every
-/// seen texel, below detection as 0 kPa (σ NaN), saturated at its lower bound. A texel below the calibration's detection
-/// signal, raised where its σ_y is above the median (local_gate), is below detection. With `spatial_noise` (a lossy
-/// capture, or phases with their own geometry) a texel below o.signal_threshold_sigmas of its own σ_y is below detection too.
+/// seen texel, below detection as 0 kPa (σ NaN), saturated at its lower bound. A texel (saturated or not) below the
+/// calibration's detection signal, raised where its detection_sigma is above the median σ_y (local_gate), is below
+/// detection. With `spatial_noise` (a lossy capture, or phases with their own geometry) a texel below
+/// o.signal_threshold_sigmas of its own detection_sigma is below detection too.
 /// Reads a.signal, a.blur_effect (may be empty) and a.signal_sigma; returns 1 per saturated texel.
 /// Also fills a.detection_limit (detection_limit below, at a.signal.noise_sigma).
 std::vector<std::uint8_t> calibrated_pressure(const PressureCalibration& calibration, bool spatial_noise, const AssessmentOptions& o,

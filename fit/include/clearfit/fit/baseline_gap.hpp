@@ -52,6 +52,9 @@ struct GapSearchOptions {
   /// camera (or a slide of the skin) from the not-worn capture's first frame to the worn one's is
   /// measured with the gap (a shift of the baseline image up to this many px); 0: not measured.
   double max_shift_px = 6.0;
+  /// The estimate's σ carried into each texel's signal σ (the signal read at the gap ± σ; assessment.cpp,
+  /// gap_signal_sigma), so that the detection gate rises where the gap moves what the baseline reads.
+  bool sigma_in_signal = true;
   int bootstrap = 200;
   std::uint64_t seed = 1;
   /// Throws std::invalid_argument naming the field, its value and the rule.
