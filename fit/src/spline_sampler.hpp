@@ -12,6 +12,8 @@
 // reads that frequency's slope at 0.4 of its value, so the steps overshoot 2.4-fold and cycle.
 #include <opencv2/core.hpp>
 
+#include <vector>
+
 namespace clearfit {
 
 class SplineSampler {
@@ -37,6 +39,10 @@ class SplineSampler {
   /// unless `dw` is null.
   void weights(float t, float* w, float* dw) const;
   int order_;
+  /// weights() at t = i / 1024, i = 0..1024: per node the order + 1 weights, then their derivatives (one table per
+  /// order, built once). The per-position path interpolates it linearly (error ~1e-7, a float's rounding): the
+  /// quintic's closed form at each position cost 14 % of the bundled sample's assessment.
+  const std::vector<float>* table_ = nullptr;
 };
 
 }  // namespace clearfit
