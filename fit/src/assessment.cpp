@@ -666,9 +666,13 @@ void pressure_and_hotspots(const AssessmentScene& scene, const std::optional<Pre
       ho.seeds = &seeds;
     }
     ho.thresholds = a.thresholds;
-    // The blur's first-order term is the part of the signal's σ shared by a whole place (as with a calibration).
+    // The blur's first-order term and the gap's are the part of the signal's σ shared by a whole place (as with a
+    // calibration).
     ChartField blur_size = a.blur_effect;
-    for (float& b : blur_size.value) b = std::abs(b);
+    for (std::size_t k = 0; k < blur_size.value.size(); ++k) {
+      const float gap = k < a.gap_signal_sigma.value.size() && std::isfinite(a.gap_signal_sigma.value[k]) ? a.gap_signal_sigma.value[k] : 0.f;
+      blur_size.value[k] = std::hypot(blur_size.value[k], gap);
+    }
     if (blur_size.value.size() == g.size()) ho.shared_sigma = &blur_size;
     a.hotspots = find_hotspots(a.signal.y, &a.signal_sigma, nullptr, a.raster, ho, &a.hotspot_labels, scene.mesh);
     a.warnings.push_back("no pressure calibration: the report shows the blanching signal and where it is significant, not kPa");

@@ -421,12 +421,14 @@ PressureSigmaParts pressure_sigma_parts(const PressureCalibration& calibration, 
   const bool blur = a.blur_effect.value.size() == g.size();
   const ChartField sharpened = blur ? sharpened_signal(a.signal.y, a.blur_effect) : a.signal.y;
   const auto ok = static_cast<std::uint8_t>(PressureStatus::ok);
-  std::vector<float> p(g.size()), with_blur(g.size()), zeros(g.size(), 0.f), size(g.size(), 0.f);
+  std::vector<float> p(g.size()), with_blur(g.size()), gap(g.size(), 0.f), size(g.size(), 0.f);
   std::vector<std::uint8_t> status(g.size()), status_blur(g.size());
-  // The calibration's parameters alone (σ_y 0), then with |blur_effect| as σ_y: the blur's kPa is what it adds.
-  calibration.invert(sharpened.value, zeros, p, out.shared.value, status, 0.0);
-  if (blur)
-    for (std::size_t k = 0; k < g.size(); ++k) size[k] = std::abs(a.blur_effect.value[k]);
+  // Shared by a place: the calibration's parameters and the estimated gap's term (one gap for every texel:
+  // Assessment::gap_signal_sigma as σ_y); then with |blur_effect| too: the blur's kPa is what it adds.
+  if (a.gap_signal_sigma.value.size() == g.size())
+    for (std::size_t k = 0; k < g.size(); ++k) gap[k] = std::isfinite(a.gap_signal_sigma.value[k]) ? a.gap_signal_sigma.value[k] : 0.f;
+  calibration.invert(sharpened.value, gap, p, out.shared.value, status, 0.0);
+  for (std::size_t k = 0; k < g.size(); ++k) size[k] = std::hypot(blur ? std::abs(a.blur_effect.value[k]) : 0.f, gap[k]);
   calibration.invert(sharpened.value, size, p, with_blur, status_blur, 0.0);
   // The residual in kPa: the inverse at y' + r less the inverse at y' (ungated, as the estimate itself), r smoothed
   // by β: the miss passes the noise's high frequencies, which moved the outline's band sums (on SigmaCoverage's

@@ -485,6 +485,40 @@ TEST(AssessmentStages, CalibrationsGateRisesWithATexelsOwnNoiseAboveTheCapturesM
   EXPECT_NEAR(a.detection_limit.kpa, 0.3, 1e-4);  // the limit reported is the median texel's
 }
 
+TEST(AssessmentStages, TheGapsTermRaisesATexelsGateAndIsSharedByAPlace) {
+  // y = 0.01·p, the calibration's gate 0.003, median σ_y 0.001. The estimated gap's term (Assessment::gap_signal_sigma)
+  // adds to a texel's detection σ in quadrature: 0.002 makes it √5 · 0.001, the gate 0.0067, and 0.005 is below
+  // detection there (detected where the term is unknown). A saturated 0.5 whose term is 0.2 (at the edge of the
+  // parallax a wrong gap moves) is below detection too; before, a saturated texel skipped the gate.
+  const PressureCalibration cal = linear_calibration();
+  const ChartGrid g = grid(4, 1, 0.1);
+  Assessment a;
+  a.signal.y = {g, {0.005f, 0.005f, 0.5f, 0.02f}};
+  a.signal.sigma_y = constant(g, 0.001f);
+  a.signal.noise_sigma = 0.001;
+  a.signal_sigma = a.signal.sigma_y;
+  Assessment without = a;
+  a.gap_signal_sigma = {g, {kNaN, 0.002f, 0.2f, 0.001f}};
+  EXPECT_NEAR(detection_sigma(a, 0), 0.001, 1e-9);
+  EXPECT_NEAR(detection_sigma(a, 1), std::sqrt(5.0) * 0.001, 1e-9);
+  EXPECT_NEAR(detection_sigma(without, 1), 0.001, 1e-9);
+  AssessmentOptions o;
+  o.hysteresis_sigmas = o.signal_threshold_sigmas;  // the gate alone
+  calibrated_pressure(cal, false, o, a);
+  calibrated_pressure(cal, false, o, without);
+  auto status = [](const Assessment& x, int k) { return static_cast<PressureStatus>(x.pressure_status[k]); };
+  EXPECT_EQ(status(a, 0), PressureStatus::ok);
+  EXPECT_EQ(status(a, 1), PressureStatus::below_detection);
+  EXPECT_EQ(status(without, 1), PressureStatus::ok);
+  EXPECT_EQ(status(a, 2), PressureStatus::below_detection);
+  EXPECT_EQ(status(without, 2), PressureStatus::saturated);
+  ASSERT_EQ(status(a, 3), PressureStatus::ok);
+  // One gap for every texel: its term is shared by a place, with the calibration's parameters (0.001 of signal is
+  // 0.1 kPa here, in quadrature).
+  const double with_gap = a.pressure_sigma_parts.shared.value[3], alone = without.pressure_sigma_parts.shared.value[3];
+  EXPECT_NEAR(with_gap * with_gap - alone * alone, 0.1 * 0.1, 1e-6);
+}
+
 TEST(AssessmentStages, HysteresisKeepsAPlacesTailButNotIsolatedNoise) {
   // y = 0.01·p, a capture with its own noise (σ_y 0.01, gate 5 σ = 0.05, hysteresis 2 σ = 0.02). One row:
   // a place (0.08 detected) with a tail 0.04, 0.03 beside it, then 0.01 (1 σ: not kept), and apart from

@@ -161,7 +161,9 @@ struct DetectionLimit {
 /// pressure_sigma is). The hotspots (HotspotOptions) take `shared` undivided in a place's mean and area, take `blur`
 /// out of the noise and leave it out of a place's figures, which take the mean of `residual` instead.
 struct PressureSigmaParts {
-  ChartField shared;    ///< the calibration's parameters (one curve for every texel): one error over a whole place
+  /// The calibration's parameters (one curve for every texel) and the estimated gap's term (one gap;
+  /// Assessment::gap_signal_sigma): one error over a whole place.
+  ChartField shared;
   /// The blur's first-order term (|blur_effect| through the inverse): each texel's allowance for what the deblur
   /// gets wrong there, larger than what a place's mean or outline gets wrong (the residual).
   ChartField blur;
