@@ -21,51 +21,30 @@ std::vector<double> poles(int order) {
   return {-0.43057534709997379, -0.043096288203264653};
 }
 
-/// One pole's causal and anticausal recursion along `n` values `c` spaced `stride` apart, with its
-/// gain (1 − z)(1 − 1/z) and mirror boundaries (Unser 1999, box 2): the causal start sums the mirrored
-/// sequence until the pole's powers fall below 1e-7; the anticausal start is the closed form for a
-/// mirrored end. A single value is its own coefficient.
-void recurse(float* c, int n, std::ptrdiff_t stride, double z) {
+/// One pole's causal and anticausal recursion along `n` values spaced `stride` apart, on `lanes` such sequences
+/// side by side (value k of lane x at c[k·stride + x]), with its gain (1 − z)(1 − 1/z) and mirror boundaries
+/// (Unser 1999, box 2): the causal start sums the mirrored sequence until the pole's powers fall below 1e-7; the
+/// anticausal start is the closed form for a mirrored end. A single value is its own coefficient. Each lane gets
+/// the same operations in the same order; the lanes make a column pass walk memory row by row (one column at a
+/// time it strided through memory and cost 9 % of the bundled sample's assessment). `sum`: scratch.
+void recurse(float* c, int n, std::ptrdiff_t stride, int lanes, double z, std::vector<double>& sum) {
   if (n < 2) return;
   const double gain = (1 - z) * (1 - 1 / z);
-  for (int k = 0; k < n; ++k) c[k * stride] = static_cast<float>(gain * c[k * stride]);
+  auto at = [&](int k) { return c + k * stride; };
+  for (int k = 0; k < n; ++k)
+    for (float *r = at(k), *e = r + lanes; r < e; ++r) *r = static_cast<float>(gain * *r);
   const int horizon = std::min(n, static_cast<int>(std::ceil(std::log(1e-7) / std::log(std::abs(z)))));
-  double sum = c[0], zk = z;
-  for (int k = 1; k < horizon; ++k) sum += zk * c[k * stride], zk *= z;
-  c[0] = static_cast<float>(sum);
-  for (int k = 1; k < n; ++k) c[k * stride] = static_cast<float>(c[k * stride] + z * c[(k - 1) * stride]);
-  const std::ptrdiff_t last = (n - 1) * stride;
-  c[last] = static_cast<float>(z / (z * z - 1) * (c[last] + z * c[last - stride]));
-  for (int k = n - 2; k >= 0; --k) c[k * stride] = static_cast<float>(z * (c[(k + 1) * stride] - c[k * stride]));
-}
-
-/// recurse() down every column of the row-major `rows` × `cols` values `c` at once, row by row (the same
-/// operations on each value in the same order as recurse() along one column, so the same result; the
-/// column-at-a-time walk strided through memory and cost 9 % of the bundled sample's assessment).
-void recurse_columns(float* c, int rows, int cols, double z) {
-  if (rows < 2) return;
-  const double gain = (1 - z) * (1 - 1 / z);
-  auto row = [&](int k) { return c + static_cast<std::ptrdiff_t>(k) * cols; };
-  for (int k = 0; k < rows; ++k)
-    for (float *r = row(k), *e = r + cols; r < e; ++r) *r = static_cast<float>(gain * *r);
-  const int horizon = std::min(rows, static_cast<int>(std::ceil(std::log(1e-7) / std::log(std::abs(z)))));
-  std::vector<double> sum(row(0), row(0) + cols);
+  sum.assign(at(0), at(0) + lanes);
   double zk = z;
-  for (int k = 1; k < horizon; ++k, zk *= z) {
-    const float* r = row(k);
-    for (int x = 0; x < cols; ++x) sum[x] += zk * r[x];
-  }
-  for (int x = 0; x < cols; ++x) row(0)[x] = static_cast<float>(sum[x]);
-  for (int k = 1; k < rows; ++k) {
-    float *r = row(k), *p = row(k - 1);
-    for (int x = 0; x < cols; ++x) r[x] = static_cast<float>(r[x] + z * p[x]);
-  }
-  float *last = row(rows - 1), *before_last = row(rows - 2);
-  for (int x = 0; x < cols; ++x) last[x] = static_cast<float>(z / (z * z - 1) * (last[x] + z * before_last[x]));
-  for (int k = rows - 2; k >= 0; --k) {
-    float *r = row(k), *n = row(k + 1);
-    for (int x = 0; x < cols; ++x) r[x] = static_cast<float>(z * (n[x] - r[x]));
-  }
+  for (int k = 1; k < horizon; ++k, zk *= z)
+    for (int x = 0; x < lanes; ++x) sum[x] += zk * at(k)[x];
+  for (int x = 0; x < lanes; ++x) at(0)[x] = static_cast<float>(sum[x]);
+  for (int k = 1; k < n; ++k)
+    for (float *r = at(k), *p = at(k - 1), *e = r + lanes; r < e; ++r, ++p) *r = static_cast<float>(*r + z * *p);
+  for (float *last = at(n - 1), *before = at(n - 2), *e = last + lanes; last < e; ++last, ++before)
+    *last = static_cast<float>(z / (z * z - 1) * (*last + z * *before));
+  for (int k = n - 2; k >= 0; --k)
+    for (float *r = at(k), *next = at(k + 1), *e = r + lanes; r < e; ++r, ++next) *r = static_cast<float>(z * (*next - *r));
 }
 
 /// (x)₊ to the power p.
@@ -102,9 +81,10 @@ SplineSampler::SplineSampler(int order) : order_(order) {
 void SplineSampler::coefficients(cv::Mat& m) const {
   CV_Assert(m.type() == CV_32F && m.isContinuous());
   float* d = m.ptr<float>();
+  std::vector<double> sum;
   for (double z : poles(order_)) {
-    for (int y = 0; y < m.rows; ++y) recurse(d + static_cast<std::ptrdiff_t>(y) * m.cols, m.cols, 1, z);
-    recurse_columns(d, m.rows, m.cols, z);
+    for (int y = 0; y < m.rows; ++y) recurse(d + static_cast<std::ptrdiff_t>(y) * m.cols, m.cols, 1, 1, z, sum);
+    recurse(d, m.rows, m.cols, m.cols, z, sum);  // the columns, side by side
   }
 }
 
